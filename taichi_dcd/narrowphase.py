@@ -1,0 +1,313 @@
+"""Triangle-pair discrete collision: Kikuchi & Kanai, "A Unified Discrete Collision
+Framework for Triangle Primitives" (EG 2025), as pure Taichi functions.
+
+For triangles A and B the method (paper §3; DESIGN.md §2) is:
+1. planes N_A, N_B (Eq. 1) and the signed distances of each triangle's vertices
+   to the other's plane;
+2. Möller's interval-overlap test on the line N_A × N_B (threshold 0);
+3. candidate points of A: A's vertices whose projection along N_B falls strictly
+   inside B (Eq. 4), points of A's plane reached from B's vertices along N_B that
+   fall strictly inside A (Eq. 5), points of A's edges whose projection along N_B
+   crosses an edge of B; symmetrically for B;
+4. depth_A = max(0, max over A's candidates of -s_B(q)), likewise depth_B;
+5. C = min(depth_A, depth_B) (Eq. 6): the shallower triangle is moved, along the
+   other triangle's normal (-∇C = N, supplement §3).
+
+Choices beyond the published listing (eps = machine epsilon of the kernels' float
+type, tol = TOL_ULPS·eps from `runtime`, L = longest edge of the pair):
+- Zero-area triangles (doubled area ≤ tol·longest edge²) have no plane: no hit,
+  no constraint, and no division by their zero normal.
+- Signed distances within tol·L of zero are snapped to exactly zero, so a vertex
+  touching the other plane is touching whatever the rounding; Möller's test with
+  threshold 0 then reports touching pairs (shared vertices, shared edges, a
+  projection that degenerates onto an edge of the other triangle: supplement
+  Fig. 8) as not intersecting.
+- Parallel planes (|N_A × N_B| ≤ tol) never intersect; the Möller line is not
+  normalised at all, so nothing divides by its length.
+- Eq. 5's points are skipped when |N_A·N_B| ≤ tol (perpendicular planes: the
+  line from a vertex along one normal never meets the other plane, or lies in
+  it; the inclusive edge crossings cover that case). Edge crossings whose
+  projected edges are parallel (|det| ≤ tol·|e1||e2|) are skipped likewise.
+- A constraint needs C > tol·L (the listing uses the absolute 1e-7, which is not
+  scale invariant and is below f32 noise at unit scale).
+- Equal positive depths are a tie the listing drops; here it is resolved by
+  moving the triangle whose vertex sum (then normal) is lexicographically
+  smaller, which does not depend on argument order.
+The contact point is the deepest candidate of the moved triangle.
+"""
+
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+from .geometry import (cross2, has_area, lex_compare, longest_edge_sq, plane_frame, snap_to_zero, straddles,
+                       inside_ccw_2d, strictly_inside_2d, to_frame, vec3)
+
+
+@ti.func
+def crossing_interval(p0: vec3, p1: vec3, p2: vec3, s: vec3, line: vec3):
+    """Möller's interval: where triangle (p0, p1, p2) crosses the other plane, as
+    parameters along `line`. s are its vertices' signed distances to that plane,
+    with both signs present. Returns (t_min, t_max)."""
+    t_proj = vec3(p0.dot(line), p1.dot(line), p2.dot(line))
+    t_min = t_proj.max()
+    t_max = t_proj.min()
+    for i in ti.static(range(3)):
+        j = (i + 1) % 3
+        if s[i] == 0.0:
+            t_min = ti.min(t_min, t_proj[i])
+            t_max = ti.max(t_max, t_proj[i])
+        if (s[i] < 0.0 and s[j] > 0.0) or (s[i] > 0.0 and s[j] < 0.0):
+            t = t_proj[i] + (t_proj[j] - t_proj[i]) * (s[i] / (s[i] - s[j]))
+            t_min = ti.min(t_min, t)
+            t_max = ti.max(t_max, t)
+    return t_min, t_max
+
+
+@ti.func
+def deeper(depth0: float, point0: vec3, depth1: float, point1: vec3):
+    """The deeper of two (depth, point) candidates; the first on a tie."""
+    take1 = depth1 > depth0
+    return ti.select(take1, depth1, depth0), ti.select(take1, point1, point0)
+
+
+@ti.func
+def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
+                      q0: vec3, q1: vec3, q2: vec3, n_q: vec3, s_q: vec3,
+                      cos_pq: float, tol: float):
+    """Depth of triangle P in triangle Q's half-space and the deepest candidate point.
+
+    s_p: P's vertices' signed distances to Q's plane; s_q: Q's to P's plane;
+    n_q: Q's unit normal; cos_pq = N_P·N_Q. A candidate x has depth -s_Q(x); the
+    result is the largest, at least 0 (paper §3.2, steps 2-3 and 7). Every test
+    is made on the images projected along N_Q into Q's plane, in 2-D coordinates
+    of that plane: projection is affine, so an edge parameter is the same on an
+    edge and on its image. Returns (depth, point).
+    """
+    pts_p = [p0, p1, p2]
+    pts_q = [q0, q1, q2]
+    t1, t2 = plane_frame(q0, q1, n_q)
+    img_p = [to_frame(p0, t1, t2), to_frame(p1, t1, t2), to_frame(p2, t1, t2)]
+    img_q = [to_frame(q0, t1, t2), to_frame(q1, t1, t2), to_frame(q2, t1, t2)]
+    # Branch-free: the outcomes are data-dependent coin flips, and mispredicted
+    # branches cost more than the arithmetic. Candidates are reduced in small
+    # independent groups so that the maximum is not one long dependency chain.
+    # An invalid candidate gets depth 0, which never beats the floor of 0.
+    # P's vertices projecting strictly inside Q (Eq. 4).
+    depth_v = 0.0
+    point_v = vec3(0.0)
+    for i in ti.static(range(3)):
+        d = ti.select(inside_ccw_2d(img_q[0], img_q[1], img_q[2], img_p[i]), -s_p[i], 0.0)
+        depth_v, point_v = deeper(depth_v, point_v, d, pts_p[i])
+    # Points x of P's plane reached from Q's vertices along N_Q (Eq. 5):
+    # x = q_j + t·N_Q with N_P·(x - p0) = 0, so t = -s_q[j]/cos_pq and the depth
+    # is -t. x is inside P exactly when q_j is inside P's image.
+    eq5_defined = ti.abs(cos_pq) > tol
+    inv_cos = 1.0 / ti.select(eq5_defined, cos_pq, 1.0)
+    depth_q = 0.0
+    point_q = vec3(0.0)
+    for j in ti.static(range(3)):
+        d = s_q[j] * inv_cos
+        valid = eq5_defined & strictly_inside_2d(img_p[0], img_p[1], img_p[2], img_q[j])
+        depth_q, point_q = deeper(depth_q, point_q, ti.select(valid, d, 0.0), pts_q[j] - d * n_q)
+    # Points of P's edges whose image crosses an edge of Q (ends included);
+    # crossings of images closer than tol to parallel are skipped.
+    depth_e = 0.0
+    point_e = vec3(0.0)
+    for i in ti.static(range(3)):
+        e_p = img_p[(i + 1) % 3] - img_p[i]
+        e_p_sq = e_p.norm_sqr()
+        depth_i = 0.0
+        u_i = 0.0
+        for j in ti.static(range(3)):
+            e_q = img_q[(j + 1) % 3] - img_q[j]
+            den = cross2(e_p, e_q)
+            w = img_q[j] - img_p[i]
+            flip = ti.select(den < 0.0, -1.0, 1.0)
+            den *= flip
+            num_u = cross2(w, e_q) * flip
+            num_v = cross2(w, e_p) * flip
+            crosses = ((den * den > tol * tol * e_p_sq * e_q.norm_sqr())
+                       & (num_u >= 0.0) & (num_u <= den) & (num_v >= 0.0) & (num_v <= den))
+            u = num_u / ti.select(crosses, den, 1.0)
+            d = ti.select(crosses, -(s_p[i] + u * (s_p[(i + 1) % 3] - s_p[i])), 0.0)
+            better = d > depth_i
+            depth_i = ti.select(better, d, depth_i)
+            u_i = ti.select(better, u, u_i)
+        depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u_i * (pts_p[(i + 1) % 3] - pts_p[i]))
+    depth, point = deeper(depth_v, point_v, depth_q, point_q)
+    depth, point = deeper(depth, point, depth_e, point_e)
+    return depth, point
+
+
+@ti.func
+def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3):
+    """The unified DCD test of triangles A = (a0, a1, a2) and B = (b0, b1, b2).
+
+    Returns (hit, depth, normal, side, point): hit — Möller's test found the
+    triangles intersecting; depth — the constraint C of Eq. 6 (0 when there is
+    none); normal — unit direction the moved triangle is pushed along (-∇C), zero
+    when there is no constraint; side — 0 if A moves, 1 if B moves, -1 if there is
+    no constraint; point — the deepest candidate point of the moved triangle.
+    """
+    tol = ti.static(runtime.tolerance())
+    hit = False
+    depth = 0.0
+    normal = vec3(0.0)
+    side = -1
+    point = vec3(0.0)
+    edge_a = longest_edge_sq(a0, a1, a2)
+    edge_b = longest_edge_sq(b0, b1, b2)
+    len_sq = ti.max(edge_a, edge_b)
+    # Signed distances with raw (unnormalised) normals first: most pairs are
+    # rejected by one plane before any square root. The snap threshold tol·L on
+    # the unit-normal distance becomes tol²·L²·|n_raw|² on the squared raw one.
+    nb_raw = (b1 - b0).cross(b2 - b0)
+    nb_sq = nb_raw.norm_sqr()
+    if has_area(nb_raw, edge_b, tol):
+        s_a = snap_to_zero(vec3(nb_raw.dot(a0 - b0), nb_raw.dot(a1 - b0), nb_raw.dot(a2 - b0)),
+                           tol * tol * len_sq * nb_sq)
+        if straddles(s_a):
+            na_raw = (a1 - a0).cross(a2 - a0)
+            na_sq = na_raw.norm_sqr()
+            if has_area(na_raw, edge_a, tol):
+                s_b = snap_to_zero(vec3(na_raw.dot(b0 - a0), na_raw.dot(b1 - a0), na_raw.dot(b2 - a0)),
+                                   tol * tol * len_sq * na_sq)
+                if straddles(s_b):
+                    inv_a = 1.0 / ti.sqrt(na_sq)
+                    inv_b = 1.0 / ti.sqrt(nb_sq)
+                    n_a = na_raw * inv_a
+                    n_b = nb_raw * inv_b
+                    s_a *= inv_b
+                    s_b *= inv_a
+                    line = n_a.cross(n_b)
+                    if line.norm_sqr() > tol * tol:
+                        ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
+                        tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
+                        if ta_max >= tb_min and tb_max >= ta_min:
+                            hit = True
+                            cos_ab = n_a.dot(n_b)
+                            depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
+                            depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
+                            if ti.min(depth_a, depth_b) > tol * ti.sqrt(len_sq):
+                                move_a = depth_a < depth_b
+                                if depth_a == depth_b:
+                                    order = lex_compare(a0 + a1 + a2, b0 + b1 + b2)
+                                    if order == 0:
+                                        order = lex_compare(n_a, n_b)
+                                    move_a = order <= 0
+                                if move_a:
+                                    depth, normal, side, point = depth_a, n_b, 0, point_a
+                                else:
+                                    depth, normal, side, point = depth_b, n_a, 1, point_b
+    return hit, depth, normal, side, point
+
+
+@ti.func
+def all_finite(x: vec3) -> bool:
+    """Whether no coordinate of x is NaN or infinite, by its exponent bits (immune to fast-math)."""
+    ok = True
+    for k in ti.static(range(3)):
+        if ti.static(runtime.precision() == "f64"):
+            ok = ok and (ti.bit_cast(x[k], ti.u64) >> ti.u64(52)) & ti.u64(0x7FF) != ti.u64(0x7FF)
+        else:
+            ok = ok and (ti.bit_cast(x[k], ti.u32) >> ti.u32(23)) & ti.u32(0xFF) != ti.u32(0xFF)
+    return ok
+
+
+@ti.kernel
+def _collide_pairs_kernel(
+    a: ti.types.ndarray(dtype=vec3, ndim=2),
+    b: ti.types.ndarray(dtype=vec3, ndim=2),
+    hit: ti.types.ndarray(ndim=1),
+    depth: ti.types.ndarray(ndim=1),
+    normal: ti.types.ndarray(dtype=vec3, ndim=1),
+    side: ti.types.ndarray(ndim=1),
+    point: ti.types.ndarray(dtype=vec3, ndim=1),
+):
+    """One unified DCD test (Eq. 6 and its gradient) per row of a and b."""
+    for i in range(a.shape[0]):
+        a0, a1, a2, b0, b1, b2 = a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2]
+        h = ti.i8(-1)  # marks a row with a non-finite coordinate
+        d = 0.0
+        n = vec3(0.0)
+        s = -1
+        p = vec3(0.0)
+        if (all_finite(a0) and all_finite(a1) and all_finite(a2)
+                and all_finite(b0) and all_finite(b1) and all_finite(b2)):
+            hit_i, d, n, s, p = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
+            h = ti.cast(hit_i, ti.i8)
+        hit[i] = h
+        depth[i] = d
+        normal[i] = n
+        side[i] = ti.cast(s, ti.i8)
+        point[i] = p
+
+
+@dataclass
+class PairContacts:
+    """Result of `collide_triangle_pairs` for n pairs.
+
+    hit (n,) bool — the triangles intersect (Möller's test); depth (n,) float —
+    the constraint C in input units, 0 where there is none; normal (n, 3) — unit
+    push direction of the moved triangle, zero where there is no constraint;
+    side (n,) int8 — 0 if `a` moves, 1 if `b` moves, -1 if no constraint;
+    point (n, 3) — deepest candidate point of the moved triangle.
+    """
+
+    hit: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    side: np.ndarray
+    point: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.depth)
+
+
+def _as_triangles(x, name: str, dtype) -> np.ndarray:
+    arr = np.asarray(x)
+    if arr.ndim != 3 or arr.shape[1:] != (3, 3):
+        raise ValueError(f"{name} must have shape (n, 3, 3), got {arr.shape}")
+    if not np.issubdtype(arr.dtype, np.number):
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    return np.ascontiguousarray(arr, dtype=dtype)
+
+
+def collide_triangle_pairs(a, b) -> PairContacts:
+    """Run the unified triangle-pair DCD test on n pairs (a[i], b[i]).
+
+    a, b: arrays of shape (n, 3, 3), vertex k of triangle i at a[i, k]; vertex
+    order gives the outward normal (right-hand rule). Computed in the precision
+    chosen at `taichi_dcd.init` (default f64). Raises ValueError for a bad shape
+    or for NaN/infinite coordinates, naming the first bad pair. See the module
+    docstring for how ties and degenerate triangles are decided.
+    """
+    runtime.ensure_init()
+    dtype = runtime.real_dtype()
+    a_arr = _as_triangles(a, "a", dtype)
+    b_arr = _as_triangles(b, "b", dtype)
+    if len(a_arr) != len(b_arr):
+        raise ValueError(f"a and b must hold the same number of triangles, got {len(a_arr)} and {len(b_arr)}")
+    n = len(a_arr)
+    # The kernel writes every row, so outputs need no initialisation.
+    hit = np.empty(n, dtype=np.int8)
+    result = PairContacts(
+        hit=hit,
+        depth=np.empty(n, dtype=dtype),
+        normal=np.empty((n, 3), dtype=dtype),
+        side=np.empty(n, dtype=np.int8),
+        point=np.empty((n, 3), dtype=dtype),
+    )
+    if n:
+        _collide_pairs_kernel(a_arr, b_arr, hit, result.depth, result.normal, result.side, result.point)
+        bad = np.flatnonzero(hit < 0)
+        if len(bad):
+            i = int(bad[0])
+            which = "a" if not np.isfinite(a_arr[i]).all() else "b"
+            raise ValueError(f"pair {i}: triangle {which} has a NaN or infinite coordinate")
+    result.hit = hit.view(bool)
+    return result

@@ -1,0 +1,104 @@
+"""The one place Taichi is initialised, and the numeric settings every kernel reads.
+
+Importing `taichi_dcd` never calls `ti.init`; the first public call that needs a
+kernel initialises Taichi with the defaults below unless the user called `init`
+first. Calling `init` again with other settings resets Taichi (all fields and
+compiled kernels are dropped) and starts it anew.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import taichi as ti
+
+ARCHS = ("cpu", "cuda", "vulkan")
+PRECISIONS = ("f32", "f64")
+
+# Geometric decisions treat quantities within TOL_ULPS machine epsilons of zero
+# (relative to the size of the triangles involved) as zero. The rounding error of
+# a signed distance N·(p - q) is a few epsilons times |p - q|; 32 leaves margin.
+TOL_ULPS = 32.0
+
+_settings: dict | None = None
+
+
+def init(
+    arch: str = "cpu",
+    precision: str = "f64",
+    debug: bool = False,
+    cpu_threads: int | None = None,
+    offline_cache: bool = True,
+) -> None:
+    """Initialise Taichi for taichi_dcd.
+
+    arch: "cpu", "cuda" or "vulkan". precision: "f32" or "f64", the float type of
+    every kernel. debug: Taichi's bounds checking (slow; used by the tests).
+    cpu_threads: limit the CPU backend's threads (1 makes runs repeatable).
+    Calling again with the same settings does nothing.
+    """
+    global _settings
+    if arch not in ARCHS:
+        raise ValueError(f"unknown arch {arch!r}: choose one of {', '.join(ARCHS)}")
+    if precision not in PRECISIONS:
+        raise ValueError(f"unknown precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+    if cpu_threads is not None and cpu_threads < 1:
+        raise ValueError(f"cpu_threads must be at least 1, got {cpu_threads}")
+    wanted = dict(arch=arch, precision=precision, debug=bool(debug),
+                  cpu_threads=cpu_threads, offline_cache=bool(offline_cache))
+    if _settings == wanted:
+        return
+    if _settings is not None:
+        ti.reset()
+    kwargs = dict(
+        arch=getattr(ti, arch),
+        default_fp=ti.f64 if precision == "f64" else ti.f32,
+        default_ip=ti.i32,
+        debug=bool(debug),
+        offline_cache=bool(offline_cache),
+        log_level=ti.WARN,
+    )
+    if cpu_threads is not None:
+        kwargs["cpu_max_num_threads"] = int(cpu_threads)
+    ti.init(**kwargs)
+    got = ti.lang.impl.current_cfg().arch
+    if got != getattr(ti, arch):
+        ti.reset()
+        _settings = None
+        raise RuntimeError(f"Taichi could not start on arch {arch!r} on this machine")
+    _settings = wanted
+
+
+def ensure_init() -> None:
+    """Initialise with the defaults if nobody has yet."""
+    if _settings is None:
+        init()
+
+
+def is_initialized() -> bool:
+    return _settings is not None
+
+
+def settings() -> dict:
+    """The settings of the running Taichi instance (initialising it if needed)."""
+    ensure_init()
+    return dict(_settings)
+
+
+def precision() -> str:
+    ensure_init()
+    return _settings["precision"]
+
+
+def real_dtype() -> type:
+    """NumPy float type matching the kernels' precision."""
+    return np.float64 if precision() == "f64" else np.float32
+
+
+def machine_eps() -> float:
+    """Machine epsilon of the kernels' float type."""
+    return float(np.finfo(real_dtype()).eps)
+
+
+def tolerance() -> float:
+    """Dimensionless zero threshold used by the geometric predicates: TOL_ULPS·eps."""
+    return TOL_ULPS * machine_eps()
