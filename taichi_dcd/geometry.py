@@ -64,18 +64,6 @@ def to_frame(x: vec3, t1: vec3, t2: vec3) -> vec2:
 
 
 @ti.func
-def inside_ccw_2d(p0: vec2, p1: vec2, p2: vec2, x: vec2) -> bool:
-    """Whether x lies strictly inside the counter-clockwise 2-D triangle (p0, p1, p2).
-
-    Evaluated without short-circuit branches (the operands are cheap).
-    """
-    c0 = cross2(p1 - p0, x - p0)
-    c1 = cross2(p2 - p1, x - p1)
-    c2 = cross2(p0 - p2, x - p2)
-    return (c0 > 0.0) & (c1 > 0.0) & (c2 > 0.0)
-
-
-@ti.func
 def strictly_inside_2d(p0: vec2, p1: vec2, p2: vec2, x: vec2) -> bool:
     """Whether x lies strictly inside the 2-D triangle (p0, p1, p2) of either winding."""
     c0 = cross2(p1 - p0, x - p0)

@@ -27,7 +27,8 @@ type, tol = TOL_ULPS·eps from `runtime`, L = longest edge of the pair):
 - Eq. 5's points are skipped when |N_A·N_B| ≤ tol (perpendicular planes: the
   line from a vertex along one normal never meets the other plane, or lies in
   it; the inclusive edge crossings cover that case). Edge crossings whose
-  projected edges are parallel (|det| ≤ tol·|e1||e2|) are skipped likewise.
+  projected edges are within tol of parallel (|e1 × e2| ≤ tol·|e1||e2|, both
+  edges projected into the other plane) are skipped likewise.
 - A constraint needs C > tol·L (the listing uses the absolute 1e-7, which is not
   scale invariant and is below f32 noise at unit scale).
 - Equal positive depths are a tie the listing drops; here it is resolved by
@@ -36,7 +37,6 @@ type, tol = TOL_ULPS·eps from `runtime`, L = longest edge of the pair):
 The contact point is the deepest candidate of the moved triangle.
 """
 
-
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +44,7 @@ import taichi as ti
 
 from . import runtime
 from .geometry import (cross2, has_area, lex_compare, longest_edge_sq, plane_frame, snap_to_zero, straddles,
-                       inside_ccw_2d, strictly_inside_2d, to_frame, vec3)
+                       strictly_inside_2d, to_frame, vec2, vec3)
 
 
 @ti.func
@@ -56,14 +56,14 @@ def crossing_interval(p0: vec3, p1: vec3, p2: vec3, s: vec3, line: vec3):
     t_min = t_proj.max()
     t_max = t_proj.min()
     for i in ti.static(range(3)):
-        j = (i + 1) % 3
-        if s[i] == 0.0:
-            t_min = ti.min(t_min, t_proj[i])
-            t_max = ti.max(t_max, t_proj[i])
-        if (s[i] < 0.0 and s[j] > 0.0) or (s[i] > 0.0 and s[j] < 0.0):
-            t = t_proj[i] + (t_proj[j] - t_proj[i]) * (s[i] / (s[i] - s[j]))
-            t_min = ti.min(t_min, t)
-            t_max = ti.max(t_max, t)
+        j = ti.static((i + 1) % 3)
+        on_plane = s[i] == 0.0
+        crosses = ((s[i] < 0.0) & (s[j] > 0.0)) | ((s[i] > 0.0) & (s[j] < 0.0))
+        t_cross = t_proj[i] + (t_proj[j] - t_proj[i]) * (s[i] / ti.select(crosses, s[i] - s[j], 1.0))
+        t_min = ti.select(on_plane, ti.min(t_min, t_proj[i]), t_min)
+        t_max = ti.select(on_plane, ti.max(t_max, t_proj[i]), t_max)
+        t_min = ti.select(crosses, ti.min(t_min, t_cross), t_min)
+        t_max = ti.select(crosses, ti.max(t_max, t_cross), t_max)
     return t_min, t_max
 
 
@@ -86,22 +86,31 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
     is made on the images projected along N_Q into Q's plane, in 2-D coordinates
     of that plane: projection is affine, so an edge parameter is the same on an
     edge and on its image. Returns (depth, point).
+
+    Branch-free: the outcomes are data-dependent coin flips, and mispredicted
+    branches cost more than the arithmetic. An invalid candidate gets depth 0,
+    which never beats the floor of 0.
     """
     pts_p = [p0, p1, p2]
     pts_q = [q0, q1, q2]
     t1, t2 = plane_frame(q0, q1, n_q)
-    img_p = [to_frame(p0, t1, t2), to_frame(p1, t1, t2), to_frame(p2, t1, t2)]
-    img_q = [to_frame(q0, t1, t2), to_frame(q1, t1, t2), to_frame(q2, t1, t2)]
-    # Branch-free: the outcomes are data-dependent coin flips, and mispredicted
-    # branches cost more than the arithmetic. Candidates are reduced in small
-    # independent groups so that the maximum is not one long dependency chain.
-    # An invalid candidate gets depth 0, which never beats the floor of 0.
+    img_p = [to_frame(p0 - q0, t1, t2), to_frame(p1 - q0, t1, t2), to_frame(p2 - q0, t1, t2)]
+    img_q = [vec2(0.0), to_frame(q1 - q0, t1, t2), to_frame(q2 - q0, t1, t2)]
+    edge_q = [img_q[1] - img_q[0], img_q[2] - img_q[1], img_q[0] - img_q[2]]
+    # g[i, j] = cross2(edge j of Q, image of p_i - q_j): positive when p_i's image is
+    # strictly on the inner side of Q's edge line j (Q is counter-clockwise here).
+    g = ti.Matrix.zero(float, 3, 3)
+    for i in ti.static(range(3)):
+        for j in ti.static(range(3)):
+            g[i, j] = cross2(edge_q[j], img_p[i] - img_q[j])
+
     # P's vertices projecting strictly inside Q (Eq. 4).
     depth_v = 0.0
     point_v = vec3(0.0)
     for i in ti.static(range(3)):
-        d = ti.select(inside_ccw_2d(img_q[0], img_q[1], img_q[2], img_p[i]), -s_p[i], 0.0)
-        depth_v, point_v = deeper(depth_v, point_v, d, pts_p[i])
+        inside = (g[i, 0] > 0.0) & (g[i, 1] > 0.0) & (g[i, 2] > 0.0)
+        depth_v, point_v = deeper(depth_v, point_v, ti.select(inside, -s_p[i], 0.0), pts_p[i])
+
     # Points x of P's plane reached from Q's vertices along N_Q (Eq. 5):
     # x = q_j + t·N_Q with N_P·(x - p0) = 0, so t = -s_q[j]/cos_pq and the depth
     # is -t. x is inside P exactly when q_j is inside P's image.
@@ -113,31 +122,42 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
         d = s_q[j] * inv_cos
         valid = eq5_defined & strictly_inside_2d(img_p[0], img_p[1], img_p[2], img_q[j])
         depth_q, point_q = deeper(depth_q, point_q, ti.select(valid, d, 0.0), pts_q[j] - d * n_q)
-    # Points of P's edges whose image crosses an edge of Q (ends included);
-    # crossings of images closer than tol to parallel are skipped.
+
+    # Points of P's edges whose image crosses an edge of Q (ends included). Along
+    # P's edge i -> i+1 the line function of Q's edge j is linear, so the crossing
+    # is at u = g[i,j] / (g[i,j] - g[i+1,j]); it lies on Q's edge segment when the
+    # other two line functions are >= 0 there. Images closer than tol to parallel
+    # are skipped. The best crossing per edge is kept as a fraction (x/den, depth
+    # times den) so that only one division per edge is needed.
     depth_e = 0.0
     point_e = vec3(0.0)
     for i in ti.static(range(3)):
-        e_p = img_p[(i + 1) % 3] - img_p[i]
-        e_p_sq = e_p.norm_sqr()
-        depth_i = 0.0
-        u_i = 0.0
+        k = ti.static((i + 1) % 3)
+        e_p_sq = (img_p[k] - img_p[i]).norm_sqr()
+        ds = s_p[k] - s_p[i]
+        best_x = 0.0
+        best_den = 1.0
+        best_num = 0.0
         for j in ti.static(range(3)):
-            e_q = img_q[(j + 1) % 3] - img_q[j]
-            den = cross2(e_p, e_q)
-            w = img_q[j] - img_p[i]
+            j1 = ti.static((j + 1) % 3)
+            j2 = ti.static((j + 2) % 3)
+            den = g[i, j] - g[k, j]
             flip = ti.select(den < 0.0, -1.0, 1.0)
             den *= flip
-            num_u = cross2(w, e_q) * flip
-            num_v = cross2(w, e_p) * flip
-            crosses = ((den * den > tol * tol * e_p_sq * e_q.norm_sqr())
-                       & (num_u >= 0.0) & (num_u <= den) & (num_v >= 0.0) & (num_v <= den))
-            u = num_u / ti.select(crosses, den, 1.0)
-            d = ti.select(crosses, -(s_p[i] + u * (s_p[(i + 1) % 3] - s_p[i])), 0.0)
-            better = d > depth_i
-            depth_i = ti.select(better, d, depth_i)
-            u_i = ti.select(better, u, u_i)
-        depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u_i * (pts_p[(i + 1) % 3] - pts_p[i]))
+            num = g[i, j] * flip
+            crosses = ((den * den > tol * tol * e_p_sq * edge_q[j].norm_sqr())
+                       & (num >= 0.0) & (num <= den)
+                       & (g[i, j1] * den + num * (g[k, j1] - g[i, j1]) >= 0.0)
+                       & (g[i, j2] * den + num * (g[k, j2] - g[i, j2]) >= 0.0))
+            x = -(s_p[i] * den + num * ds)
+            better = crosses & (x * best_den > best_x * den)
+            best_x = ti.select(better, x, best_x)
+            best_den = ti.select(better, den, best_den)
+            best_num = ti.select(better, num, best_num)
+        u = best_num / best_den
+        depth_i = ti.select(best_x > 0.0, -(s_p[i] + u * ds), 0.0)
+        depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u * (pts_p[k] - pts_p[i]))
+
     depth, point = deeper(depth_v, point_v, depth_q, point_q)
     depth, point = deeper(depth, point, depth_e, point_e)
     return depth, point
@@ -159,50 +179,52 @@ def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: 
     normal = vec3(0.0)
     side = -1
     point = vec3(0.0)
-    edge_a = longest_edge_sq(a0, a1, a2)
-    edge_b = longest_edge_sq(b0, b1, b2)
-    len_sq = ti.max(edge_a, edge_b)
-    # Signed distances with raw (unnormalised) normals first: most pairs are
-    # rejected by one plane before any square root. The snap threshold tol·L on
-    # the unit-normal distance becomes tol²·L²·|n_raw|² on the squared raw one.
+    # Möller's rejection on raw (unnormalised) normals first: snapping near-zero
+    # distances can only remove a straddle, never create one, so most pairs leave
+    # after one cross product and three dot products, before any tolerance work.
     nb_raw = (b1 - b0).cross(b2 - b0)
-    nb_sq = nb_raw.norm_sqr()
-    if has_area(nb_raw, edge_b, tol):
-        s_a = snap_to_zero(vec3(nb_raw.dot(a0 - b0), nb_raw.dot(a1 - b0), nb_raw.dot(a2 - b0)),
-                           tol * tol * len_sq * nb_sq)
-        if straddles(s_a):
-            na_raw = (a1 - a0).cross(a2 - a0)
+    s_a = vec3(nb_raw.dot(a0 - b0), nb_raw.dot(a1 - b0), nb_raw.dot(a2 - b0))
+    if straddles(s_a):
+        na_raw = (a1 - a0).cross(a2 - a0)
+        s_b = vec3(na_raw.dot(b0 - a0), na_raw.dot(b1 - a0), na_raw.dot(b2 - a0))
+        if straddles(s_b):
+            edge_a = longest_edge_sq(a0, a1, a2)
+            edge_b = longest_edge_sq(b0, b1, b2)
+            len_sq = ti.max(edge_a, edge_b)
             na_sq = na_raw.norm_sqr()
-            if has_area(na_raw, edge_a, tol):
-                s_b = snap_to_zero(vec3(na_raw.dot(b0 - a0), na_raw.dot(b1 - a0), na_raw.dot(b2 - a0)),
-                                   tol * tol * len_sq * na_sq)
-                if straddles(s_b):
-                    inv_a = 1.0 / ti.sqrt(na_sq)
-                    inv_b = 1.0 / ti.sqrt(nb_sq)
-                    n_a = na_raw * inv_a
-                    n_b = nb_raw * inv_b
-                    s_a *= inv_b
-                    s_b *= inv_a
-                    line = n_a.cross(n_b)
-                    if line.norm_sqr() > tol * tol:
-                        ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
-                        tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
-                        if ta_max >= tb_min and tb_max >= ta_min:
-                            hit = True
-                            cos_ab = n_a.dot(n_b)
-                            depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
-                            depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
-                            if ti.min(depth_a, depth_b) > tol * ti.sqrt(len_sq):
-                                move_a = depth_a < depth_b
-                                if depth_a == depth_b:
-                                    order = lex_compare(a0 + a1 + a2, b0 + b1 + b2)
-                                    if order == 0:
-                                        order = lex_compare(n_a, n_b)
-                                    move_a = order <= 0
-                                if move_a:
-                                    depth, normal, side, point = depth_a, n_b, 0, point_a
-                                else:
-                                    depth, normal, side, point = depth_b, n_a, 1, point_b
+            nb_sq = nb_raw.norm_sqr()
+            # The snap threshold tol·L on a unit-normal distance is tol²·L²·|n_raw|²
+            # on the squared raw one.
+            s_a = snap_to_zero(s_a, tol * tol * len_sq * nb_sq)
+            s_b = snap_to_zero(s_b, tol * tol * len_sq * na_sq)
+            if (has_area(na_raw, edge_a, tol) and has_area(nb_raw, edge_b, tol)
+                    and straddles(s_a) and straddles(s_b)):
+                inv_a = 1.0 / ti.sqrt(na_sq)
+                inv_b = 1.0 / ti.sqrt(nb_sq)
+                n_a = na_raw * inv_a
+                n_b = nb_raw * inv_b
+                s_a *= inv_b
+                s_b *= inv_a
+                line = n_a.cross(n_b)
+                if line.norm_sqr() > tol * tol:
+                    ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
+                    tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
+                    if ta_max >= tb_min and tb_max >= ta_min:
+                        hit = True
+                        cos_ab = n_a.dot(n_b)
+                        depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
+                        depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
+                        if ti.min(depth_a, depth_b) > tol * ti.sqrt(len_sq):
+                            move_a = depth_a < depth_b
+                            if depth_a == depth_b:
+                                order = lex_compare(a0 + a1 + a2, b0 + b1 + b2)
+                                if order == 0:
+                                    order = lex_compare(n_a, n_b)
+                                move_a = order <= 0
+                            if move_a:
+                                depth, normal, side, point = depth_a, n_b, 0, point_a
+                            else:
+                                depth, normal, side, point = depth_b, n_a, 1, point_b
     return hit, depth, normal, side, point
 
 

@@ -69,9 +69,9 @@ def test_where_f32_stops_agreeing_with_f64(f64):
       it breaks (a quarter of the verdicts differ): the squared quantities in the
       tolerance tests (~size^6) fall into f32's subnormal range.
     - Distance from the origin: f32 resolves coordinates to ~6e-8 of their magnitude, so
-      the depth error grows linearly with the offset: ~3e-5 of the triangle size at offset
-      100, ~4e-2 at offset 1e5, where > 1% of the verdicts differ. f32 is fine for unit
-      triangles within ~100 of the origin and wrong beyond ~1e4.
+      the depth error grows linearly with the offset: 99th percentile ~2e-5 of the
+      triangle size at offset 100, ~2e-2 at offset 1e5, where ~1% of the verdicts differ.
+      f32 is fine for unit triangles within ~100 of the origin and wrong beyond ~1e4.
     """
     a, b = random_pairs(5000, seed=5)
     a, b = a - 0.5, b - 0.5
@@ -86,4 +86,4 @@ def test_where_f32_stops_agreeing_with_f64(f64):
     side_off, err = f32_disagreement(a, b, ref.side, ref.depth, lambda x: x + 100.0, 1.0)
     assert side_off < 1e-3 and err < 1e-4, (side_off, err)
     side_off, err = f32_disagreement(a, b, ref.side, ref.depth, lambda x: x + 1e5, 1.0)
-    assert side_off > 5e-3 and err > 1e-2, (side_off, err)
+    assert side_off > 2e-3 and err > 3e-3, (side_off, err)
