@@ -68,6 +68,45 @@ def crossing_interval(p0: vec3, p1: vec3, p2: vec3, s: vec3, line: vec3):
 
 
 @ti.func
+def intervals_overlap(a0: vec3, a1: vec3, a2: vec3, n_a: vec3, s_a: vec3,
+                      b0: vec3, b1: vec3, b2: vec3, n_b: vec3, s_b: vec3, tol: float) -> bool:
+    """Möller's interval-overlap test for triangles that each straddle the other's plane.
+
+    s_a, s_b: each triangle's vertex distances to the other's plane. The intervals
+    where the triangles cross the other plane are compared along N_A × N_B, which
+    is not normalised (nothing divides by its length); planes within tol of
+    parallel never overlap.
+    """
+    line = n_a.cross(n_b)
+    overlap = False
+    if line.norm_sqr() > tol * tol:
+        ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
+        tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
+        overlap = ta_max >= tb_min and tb_max >= ta_min
+    return overlap
+
+
+@ti.func
+def moved_side(depth_a: float, depth_b: float, sum_a: vec3, sum_b: vec3, n_a: vec3, n_b: vec3,
+               min_depth: float) -> int:
+    """Eq. 6's decision: C = min(depth_A, depth_B); the shallower triangle moves.
+
+    Returns 0 if A moves, 1 if B moves, -1 if C <= min_depth (no constraint). On a
+    tie the triangle whose vertex sum (then normal) is lexicographically smaller
+    moves, which does not depend on argument order.
+    """
+    side = -1
+    if ti.min(depth_a, depth_b) > min_depth:
+        side = 0 if depth_a < depth_b else 1
+        if depth_a == depth_b:
+            order = lex_compare(sum_a, sum_b)
+            if order == 0:
+                order = lex_compare(n_a, n_b)
+            side = 0 if order <= 0 else 1
+    return side
+
+
+@ti.func
 def deeper(depth0: float, point0: vec3, depth1: float, point1: vec3):
     """The deeper of two (depth, point) candidates; the first on a tie."""
     take1 = depth1 > depth0
@@ -205,26 +244,16 @@ def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: 
                 n_b = nb_raw * inv_b
                 s_a *= inv_b
                 s_b *= inv_a
-                line = n_a.cross(n_b)
-                if line.norm_sqr() > tol * tol:
-                    ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
-                    tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
-                    if ta_max >= tb_min and tb_max >= ta_min:
-                        hit = True
-                        cos_ab = n_a.dot(n_b)
-                        depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
-                        depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
-                        if ti.min(depth_a, depth_b) > tol * ti.sqrt(len_sq):
-                            move_a = depth_a < depth_b
-                            if depth_a == depth_b:
-                                order = lex_compare(a0 + a1 + a2, b0 + b1 + b2)
-                                if order == 0:
-                                    order = lex_compare(n_a, n_b)
-                                move_a = order <= 0
-                            if move_a:
-                                depth, normal, side, point = depth_a, n_b, 0, point_a
-                            else:
-                                depth, normal, side, point = depth_b, n_a, 1, point_b
+                if intervals_overlap(a0, a1, a2, n_a, s_a, b0, b1, b2, n_b, s_b, tol):
+                    hit = True
+                    cos_ab = n_a.dot(n_b)
+                    depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
+                    depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
+                    side = moved_side(depth_a, depth_b, a0 + a1 + a2, b0 + b1 + b2, n_a, n_b, tol * ti.sqrt(len_sq))
+                    if side == 0:
+                        depth, normal, point = depth_a, n_b, point_a
+                    elif side == 1:
+                        depth, normal, point = depth_b, n_a, point_b
     return hit, depth, normal, side, point
 
 
