@@ -20,8 +20,7 @@ def longest_edge_sq(p0: vec3, p1: vec3, p2: vec3) -> float:
 def has_area(n_raw: vec3, edge_sq: float, tol: float) -> bool:
     """Whether a triangle with raw normal n_raw = (p1-p0)×(p2-p0) and longest squared
     edge edge_sq has a reliable plane: doubled area > tol·(longest edge)²."""
-    area2_sq = n_raw.norm_sqr()
-    return area2_sq > tol * tol * edge_sq * edge_sq and area2_sq > 0.0
+    return n_raw.norm_sqr() > tol * tol * edge_sq * edge_sq
 
 
 @ti.func
