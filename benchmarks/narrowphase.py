@@ -15,16 +15,13 @@ Usage: python benchmarks/narrowphase.py [--pairs N] [--repeat R]
 import argparse
 import os
 import platform
-import sys
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-
-import taichi_dcd  # noqa: E402
-from taichi_dcd import runtime  # noqa: E402
-from taichi_dcd.reference import collide_triangle_pairs_reference  # noqa: E402
+import taichi_dcd
+from taichi_dcd import runtime
+from taichi_dcd.reference import collide_triangle_pairs_reference
 
 
 def machine_line() -> str:
