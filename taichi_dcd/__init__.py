@@ -14,6 +14,8 @@ _LAZY = {
     "is_initialized": "runtime",
     "collide_triangle_pairs": "narrowphase",
     "PairContacts": "narrowphase",
+    "find_contacts": "collision",
+    "MeshContacts": "collision",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -56,6 +56,10 @@ def init(
         debug=bool(debug),
         offline_cache=bool(offline_cache),
         log_level=ti.WARN,
+        # Fast math lets LLVM reassociate differently in each kernel that inlines
+        # a predicate, so a touching pair could be a hit in one kernel and not in
+        # another; the narrow phase costs the same without it.
+        fast_math=False,
     )
     if cpu_threads is not None:
         kwargs["cpu_max_num_threads"] = int(cpu_threads)
@@ -82,6 +86,21 @@ def settings() -> dict:
     """The settings of the running Taichi instance (initialising it if needed)."""
     ensure_init()
     return dict(_settings)
+
+
+# Below this many loop iterations a CPU kernel's loops run serially: on these
+# machines a parallel loop costs ~120 µs to dispatch to the thread pool, and its
+# atomics cost ~5× a serial loop's (Taichi demotes atomics in serial loops).
+PARALLEL_MIN_WORK = 200_000
+
+
+def serial_loops(work: int) -> bool:
+    """Whether a kernel whose loops do about `work` iterations should run them serially:
+    always on one CPU thread, below PARALLEL_MIN_WORK on CPU, never on a GPU."""
+    ensure_init()
+    if _settings["arch"] != "cpu":
+        return False
+    return _settings["cpu_threads"] == 1 or work < PARALLEL_MIN_WORK
 
 
 def precision() -> str:

@@ -1,0 +1,159 @@
+"""The collision pipeline: broad phase, then the unified narrow phase into a contact buffer.
+
+`CollisionPipeline` allocates once and is run on the current particle positions;
+`find_contacts` is the one-call numpy front end for whole meshes.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+from .broadphase import UniformGrid, ivec2, ivec3
+from .contacts import Contacts
+from .geometry import vec3
+from .narrowphase import collide_triangle_pair
+
+
+@ti.kernel
+def _collide_candidates(
+    particle_x: ti.types.ndarray(dtype=vec3, ndim=1),
+    tri_indices: ti.types.ndarray(dtype=ivec3, ndim=1),
+    pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
+    n_pairs: ti.i32,
+    contact_pair: ti.types.ndarray(dtype=ivec2, ndim=1),
+    contact_depth: ti.types.ndarray(ndim=1),
+    contact_normal: ti.types.ndarray(dtype=vec3, ndim=1),
+    contact_side: ti.types.ndarray(ndim=1),
+    contact_point: ti.types.ndarray(dtype=vec3, ndim=1),
+    contact_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    serial: ti.template(),
+) -> ti.i32:
+    """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
+    intersecting ones and returns how many there are (more than the capacity on overflow)."""
+    contact_count[0] = 0
+    ti.loop_config(serialize=serial)
+    for k in range(n_pairs):
+        ab = pairs[k]
+        ia, ib = tri_indices[ab[0]], tri_indices[ab[1]]
+        hit, depth, normal, side, point = collide_triangle_pair(
+            particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]],
+            particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]])
+        if hit:
+            slot = ti.atomic_add(contact_count[0], 1)
+            if slot < contact_depth.shape[0]:
+                contact_pair[slot] = ab
+                contact_depth[slot] = depth
+                contact_normal[slot] = normal
+                contact_side[slot] = ti.cast(side, ti.i8)
+                contact_point[slot] = point
+    return contact_count[0]
+
+
+class CollisionPipeline:
+    """Broad phase + narrow phase over the triangles of several bodies.
+
+    tri_indices (m, 3), tri_body (m,), tri_static (m,) bool: as for `UniformGrid`.
+    cell_size, margin: the grid's base cell size and box inflation (scene units).
+    Buffers start at the given capacities and grow whenever a query overflows them.
+    """
+
+    def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
+                 margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024):
+        self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
+                                pair_capacity=pair_capacity)
+        self.contacts = Contacts(contact_capacity)
+
+    def run(self, particle_x) -> int:
+        """All intersecting triangle pairs at particle_x (ti.ndarray of vec3, (n_particles,))
+        into `self.contacts`; returns their number."""
+        n_pairs = self.grid.find_pairs(particle_x)
+        c = self.contacts
+        while True:
+            n = _collide_candidates(particle_x, self.grid.tri_indices, self.grid.pairs, n_pairs,
+                                    c.pair, c.depth, c.normal, c.side, c.point, c.counter,
+                                    runtime.serial_loops(n_pairs))
+            if n <= c.capacity:
+                break
+            c.grow(n)
+        c.count = n
+        return n
+
+
+@dataclass
+class MeshContacts:
+    """Every intersecting triangle pair of different bodies, sorted by (body_a, tri_a, body_b, tri_b).
+
+    body_a < body_b; tri_a, tri_b index the faces of those bodies. hit is True on every
+    row; depth, normal, side and point are as in `collide_triangle_pairs` with a = the
+    face of body_a (side 0: body_a's triangle moves, along normal).
+    """
+
+    body_a: np.ndarray
+    tri_a: np.ndarray
+    body_b: np.ndarray
+    tri_b: np.ndarray
+    hit: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    side: np.ndarray
+    point: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.depth)
+
+
+def _check_mesh(k: int, mesh) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        vertices, faces = mesh
+    except (TypeError, ValueError):
+        raise ValueError(f"mesh {k} must be a (vertices, faces) pair") from None
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or not np.issubdtype(v.dtype, np.number):
+        raise ValueError(f"mesh {k}: vertices must be a numeric (n, 3) array, got shape {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"mesh {k}: faces must be an integer (m, 3) array, got shape {f.shape}, dtype {f.dtype}")
+    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+    if len(bad):
+        raise ValueError(f"mesh {k}: vertex {bad[0]} has a NaN or infinite coordinate")
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError(f"mesh {k}: face indices must lie in [0, {len(v)}), got {f.min()}..{f.max()}")
+    return v, f
+
+
+def find_contacts(meshes, cell_size: float | None = None) -> MeshContacts:
+    """Every intersecting triangle pair between different meshes.
+
+    meshes: a list of (vertices (n_i, 3) float, faces (m_i, 3) int) numpy pairs, one per
+    body, in world space; faces give outward normals by the right-hand rule.
+    cell_size: base grid cell size (scene units; default: the median triangle size).
+    Runs in the precision chosen at `taichi_dcd.init`. Raises ValueError on bad input.
+    """
+    runtime.ensure_init()
+    checked = [_check_mesh(k, mesh) for k, mesh in enumerate(meshes)]
+    dtype = runtime.real_dtype()
+    vert_offset = np.cumsum([0] + [len(v) for v, _ in checked])
+    tri_offset = np.cumsum([0] + [len(f) for _, f in checked])
+    x = np.concatenate([v for v, _ in checked]).astype(dtype) if checked else np.zeros((0, 3), dtype)
+    tri_indices = (np.concatenate([f + o for (_, f), o in zip(checked, vert_offset)]).astype(np.int32)
+                   if checked else np.zeros((0, 3), np.int32))
+    tri_body = np.repeat(np.arange(len(checked), dtype=np.int32), np.diff(tri_offset))
+
+    pipeline = CollisionPipeline(tri_indices, tri_body, cell_size=cell_size,
+                                 pair_capacity=max(1024, 4 * len(tri_indices)))
+    particle_x = ti.ndarray(ti.types.vector(3, ti.f64 if dtype == np.float64 else ti.f32),
+                            shape=max(len(x), 1))
+    if len(x):
+        particle_x.from_numpy(x)
+    pipeline.run(particle_x)
+    c = pipeline.contacts.to_numpy()
+    tri_a, tri_b = c.pair[:, 0].astype(np.int64), c.pair[:, 1].astype(np.int64)
+    body_a, body_b = tri_body[tri_a].astype(np.int64), tri_body[tri_b].astype(np.int64)
+    local_a, local_b = tri_a - tri_offset[body_a], tri_b - tri_offset[body_b]
+    order = np.lexsort((local_b, body_b, local_a, body_a))
+    return MeshContacts(
+        body_a=body_a[order], tri_a=local_a[order], body_b=body_b[order], tri_b=local_b[order],
+        hit=np.ones(len(order), dtype=bool), depth=c.depth[order], normal=c.normal[order],
+        side=c.side[order], point=c.point[order])

@@ -1,0 +1,74 @@
+"""Per-query contact buffer: the intersecting triangle pairs and their constraints.
+
+This is what the solver consumes. Rows [0, count) are valid; the buffer has a
+fixed capacity, and whoever fills it grows it and runs again on overflow.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+
+ivec2 = ti.types.vector(2, ti.i32)
+
+
+@dataclass
+class ContactArrays:
+    """Contacts as numpy arrays, one row per intersecting triangle pair.
+
+    pair (n, 2) int — global triangle indices (a, b), the body of a before that of b;
+    depth (n,) — the constraint C (scene units), 0 where there is none; normal (n, 3)
+    — unit push direction of the moved triangle; side (n,) int8 — 0 if a moves, 1 if
+    b moves, -1 if no constraint; point (n, 3) — deepest candidate point of the moved
+    triangle.
+    """
+
+    pair: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    side: np.ndarray
+    point: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.depth)
+
+
+class Contacts:
+    """Fixed-capacity contact buffer (Taichi ndarrays) with a counter."""
+
+    def __init__(self, capacity: int = 1024):
+        if capacity < 1:
+            raise ValueError(f"contact capacity must be at least 1, got {capacity}")
+        runtime.ensure_init()
+        self.count = 0
+        self._allocate(capacity)
+
+    def _allocate(self, capacity: int) -> None:
+        real = ti.f64 if runtime.precision() == "f64" else ti.f32
+        vec3 = ti.types.vector(3, real)
+        self.pair = ti.ndarray(ivec2, shape=capacity)
+        self.depth = ti.ndarray(real, shape=capacity)
+        self.normal = ti.ndarray(vec3, shape=capacity)
+        self.side = ti.ndarray(ti.i8, shape=capacity)
+        self.point = ti.ndarray(vec3, shape=capacity)
+        self.counter = ti.ndarray(ti.i32, shape=1)
+
+    @property
+    def capacity(self) -> int:
+        return self.depth.shape[0]
+
+    def grow(self, needed: int) -> None:
+        """Reallocate for at least `needed` rows (contents are lost; run the query again)."""
+        self._allocate(max(needed, 2 * self.capacity))
+
+    def to_numpy(self) -> ContactArrays:
+        n = self.count
+        return ContactArrays(
+            pair=self.pair.to_numpy()[:n],
+            depth=self.depth.to_numpy()[:n],
+            normal=self.normal.to_numpy()[:n],
+            side=self.side.to_numpy()[:n],
+            point=self.point.to_numpy()[:n],
+        )

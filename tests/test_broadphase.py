@@ -1,0 +1,142 @@
+"""The grid's candidate pairs equal brute-force box overlap, whatever the triangle soup."""
+
+import numpy as np
+import pytest
+import taichi as ti
+
+from taichi_dcd.broadphase import BOX_SLACK, UniformGrid
+from taichi_dcd.runtime import tolerance
+
+
+def brute_pairs(x, tri_indices, tri_body, tri_static, margin=0.0) -> set:
+    """All (a, b) with body[a] < body[b], not both static, whose closed boxes overlap
+    (boxes padded by the margin and the narrow phase's tolerance, as the grid's are)."""
+    tris = x[tri_indices]
+    lo, hi = tris.min(axis=1), tris.max(axis=1)
+    pad = margin + BOX_SLACK * tolerance() * (hi - lo).max(axis=1, keepdims=True)
+    lo, hi = lo - pad, hi + pad
+    overlap = ((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :])).all(axis=2)
+    keep = overlap & (tri_body[:, None] < tri_body[None, :]) & ~(tri_static[:, None] & tri_static[None, :])
+    a, b = np.nonzero(keep)
+    return set(zip(a.tolist(), b.tolist()))
+
+
+def grid_pairs(grid: UniformGrid, x: np.ndarray) -> set:
+    px = ti.ndarray(ti.types.vector(3, ti.f64), shape=len(x))
+    px.from_numpy(x)
+    grid.find_pairs(px)
+    pairs = grid.pairs_numpy()
+    found = [tuple(p) for p in pairs.tolist()]
+    assert len(found) == len(set(found)), "a pair was reported twice"
+    return set(found)
+
+
+def soup(rng, n_bodies: int, tris_per_body: int, spread: float, size: float):
+    """Bodies of random triangles around random centres: vertices (n, 3), faces (m, 3), body (m,)."""
+    xs, faces, body = [], [], []
+    for k in range(n_bodies):
+        centre = rng.uniform(-spread, spread, 3)
+        m = int(rng.integers(1, tris_per_body + 1))
+        sizes = size * rng.uniform(0.2, 1.5, (m, 1, 1))
+        tri = centre + sizes * rng.uniform(-1, 1, (m, 3, 3))
+        faces.append(np.arange(3 * m).reshape(m, 3) + sum(len(v) for v in xs))
+        xs.append(tri.reshape(-1, 3))
+        body += [k] * m
+    return np.concatenate(xs), np.concatenate(faces), np.array(body)
+
+
+def check(x, faces, body, static=None, **grid_kwargs):
+    static = np.zeros(len(faces), bool) if static is None else static
+    grid = UniformGrid(faces, body, static, **grid_kwargs)
+    expected = brute_pairs(x, faces, body, static, grid_kwargs.get("margin", 0.0))
+    got = grid_pairs(grid, x)
+    assert got == expected, f"missing {sorted(expected - got)[:5]}, extra {sorted(got - expected)[:5]}"
+    return grid, expected
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_soups_match_brute_force(f64, seed):
+    rng = np.random.default_rng(seed)
+    n_bodies = int(rng.integers(2, 51))
+    x, faces, body = soup(rng, n_bodies, tris_per_body=12, spread=1.0, size=0.3)
+    _, expected = check(x, faces, body)
+    assert len(expected) > 0
+
+
+def test_ground_triangle_100_times_larger(f64):
+    rng = np.random.default_rng(10)
+    x, faces, body = soup(rng, 30, tris_per_body=8, spread=1.0, size=0.05)
+    ground = np.array([[-100.0, -0.5, -100.0], [0.0, 0.3, 100.0], [100.0, -0.5, -100.0]])
+    x = np.concatenate([x, ground])
+    faces = np.concatenate([faces, [[len(x) - 3, len(x) - 2, len(x) - 1]]])
+    body = np.concatenate([body, [body.max() + 1]])
+    grid, expected = check(x, faces, body)
+    assert sum(1 for a, b in expected if b == len(faces) - 1) > 10
+    # The ground is binned at a coarse level, not into ~10^8 fine cells.
+    assert grid.tables[0].entries < 8 * len(faces)
+
+
+def test_slivers_and_zero_area_triangles(f64):
+    rng = np.random.default_rng(11)
+    x, faces, body = soup(rng, 20, tris_per_body=6, spread=0.5, size=0.3)
+    tris = x[faces]
+    # Every other triangle becomes a needle: its third vertex on its first edge,
+    # or a point: all three vertices equal.
+    tris[::2, 2] = tris[::2, 0] + 0.5 * (tris[::2, 1] - tris[::2, 0])
+    tris[1::7, 1:] = tris[1::7, :1]
+    check(tris.reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3), body)
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.1])
+def test_triangles_on_cell_boundaries(f64, margin):
+    rng = np.random.default_rng(12)
+    h = 0.25
+    # Vertices on the lattice of cell corners: many boxes touch exactly at a face,
+    # an edge or a corner of a cell.
+    tris = h * rng.integers(-4, 5, (300, 3, 3)).astype(float)
+    body = rng.integers(0, 12, 300)
+    x = tris.reshape(-1, 3)
+    check(x, np.arange(len(x)).reshape(-1, 3), body, cell_size=h, margin=margin)
+
+
+def test_everything_in_one_cell(f64):
+    rng = np.random.default_rng(13)
+    x, faces, body = soup(rng, 15, tris_per_body=10, spread=0.2, size=0.1)
+    grid, expected = check(x + 50.0, faces, body, cell_size=100.0)
+    binned = int((grid.tri_level.to_numpy() >= 0).sum())
+    assert grid.tables[0].entries == binned > len(faces) // 2  # one cell each, the same cell
+    assert len(expected) > 50
+
+
+def test_static_bodies_binned_once_while_others_move(f64):
+    rng = np.random.default_rng(14)
+    x, faces, body = soup(rng, 12, tris_per_body=10, spread=0.6, size=0.3)
+    static = np.isin(body, [0, 3, 4])
+    grid, _ = check(x, faces, body, static)
+    static_entries = grid.tables[1].entries
+    moving_vertices = np.unique(faces[~static])
+    for step in range(3):
+        x = x.copy()
+        x[moving_vertices] += rng.uniform(-0.2, 0.2, (len(moving_vertices), 3))
+        expected = brute_pairs(x, faces, body, static)
+        assert grid_pairs(grid, x) == expected
+    assert grid.tables[1].entries == static_entries
+
+
+def test_pair_buffer_overflow_grows_and_gives_the_same_pairs(f64):
+    rng = np.random.default_rng(15)
+    x, faces, body = soup(rng, 20, tris_per_body=10, spread=0.5, size=0.3)
+    grid, expected = check(x, faces, body, pair_capacity=1)
+    assert grid.pair_capacity >= len(expected) > 1
+
+
+def test_f32_grid_matches_brute_force(f32):
+    rng = np.random.default_rng(16)
+    x, faces, body = soup(rng, 25, tris_per_body=10, spread=1.0, size=0.3)
+    x = x.astype(np.float32)
+    grid = UniformGrid(faces, body)
+    px = ti.ndarray(ti.types.vector(3, ti.f32), shape=len(x))
+    px.from_numpy(x)
+    grid.find_pairs(px)
+    got = set(map(tuple, grid.pairs_numpy().tolist()))
+    assert got == brute_pairs(x, faces, body, np.zeros(len(faces), bool))
