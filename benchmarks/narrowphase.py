@@ -14,31 +14,14 @@ Usage: python benchmarks/narrowphase.py [--pairs N] [--repeat R]
 
 import argparse
 import os
-import platform
 import time
 
 import numpy as np
+from common import machine_line
 
 import taichi_dcd
 from taichi_dcd import runtime
 from taichi_dcd.reference import collide_triangle_pairs_reference
-
-
-def machine_line() -> str:
-    model = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    import taichi as ti
-
-    ti_version = ".".join(map(str, ti.__version__))
-    return (f"machine: {model}, {os.cpu_count()} logical cores, {platform.system()} {platform.machine()}; "
-            f"Python {platform.python_version()}, taichi {ti_version}, numpy {np.__version__}")
 
 
 def best_rate(fn, n: int, repeat: int) -> float:

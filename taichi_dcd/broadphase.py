@@ -155,6 +155,7 @@ def _triangle_boxes(
 @ti.kernel
 def _bin_group(
     tri_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
     group: ti.i32,
     inv_h0: float,
     box_lo: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -162,25 +163,36 @@ def _bin_group(
     tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
     bucket_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
     bucket_fill: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    bucket_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
     block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
     entry_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
     entry_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
+    entry_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    entry_lo: ti.types.ndarray(dtype=vec3, ndim=1),
+    entry_hi: ti.types.ndarray(dtype=vec3, ndim=1),
     serial: ti.template(),
 ):
-    """Hash table of one group: count per bucket, prefix sum (blocked; serial over blocks), scatter."""
+    """Hash table of one group: count per bucket (and the range of bodies in it), prefix
+    sum (blocked; serial over blocks), scatter. Each entry carries its triangle's body
+    and box, so that scanning a bucket reads contiguous memory."""
     n_buckets = bucket_fill.shape[0]
     mask = n_buckets - 1
     ti.loop_config(serialize=serial)
     for b in range(n_buckets):
         bucket_fill[b] = 0
+        bucket_bodies[b] = ivec2(2147483647, -1)
     ti.loop_config(serialize=serial)
     for t in range(tri_group.shape[0]):
         if tri_group[t] == group and tri_level[t] >= 0:
             level = tri_level[t]
+            body = tri_body[t]
             inv_h = level_inv_h(inv_h0, level)
             c0, c1 = cell_of(box_lo[t], inv_h), cell_of(box_hi[t], inv_h)
             for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-                ti.atomic_add(bucket_fill[bucket_of(level, ivec3(x, y, z), mask)], 1)
+                b = bucket_of(level, ivec3(x, y, z), mask)
+                ti.atomic_add(bucket_fill[b], 1)
+                ti.atomic_min(bucket_bodies[b][0], body)
+                ti.atomic_max(bucket_bodies[b][1], body)
     # Exclusive scan within blocks in parallel, then over block totals serially.
     ti.loop_config(serialize=serial)
     for k in range(block_sum.shape[0]):
@@ -205,48 +217,56 @@ def _bin_group(
         if tri_group[t] == group and tri_level[t] >= 0:
             level = tri_level[t]
             inv_h = level_inv_h(inv_h0, level)
-            c0, c1 = cell_of(box_lo[t], inv_h), cell_of(box_hi[t], inv_h)
+            lo, hi = box_lo[t], box_hi[t]
+            body = tri_body[t]
+            c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
             for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
                 c = ivec3(x, y, z)
                 slot = ti.atomic_add(bucket_fill[bucket_of(level, c, mask)], 1)
                 entry_tri[slot] = t
                 entry_cell[slot] = c
+                entry_body[slot] = body
+                entry_lo[slot] = lo
+                entry_hi[slot] = hi
 
 
 @ti.func
-def report_pair(t: ti.i32, u: ti.i32, c: ivec3, inv_h: float, box_lo: ti.template(), box_hi: ti.template(),
-                tri_body: ti.template(), pairs: ti.template(), pair_count: ti.template()):
-    """Append (t, u), body order first, if they are on different bodies, their boxes
-    overlap, and c (a cell both cover) holds the lower corner of the boxes' intersection."""
-    body_t, body_u = tri_body[t], tri_body[u]
-    lo_t, lo_u = box_lo[t], box_lo[u]
-    if body_t != body_u and boxes_overlap(lo_t, box_hi[t], lo_u, box_hi[u]):
-        if all(ti.max(cell_of(lo_t, inv_h), cell_of(lo_u, inv_h)) == c):
-            k = ti.atomic_add(pair_count[0], 1)
-            if k < pairs.shape[0]:
-                pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
+def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32, lo_u: vec3,
+                c: ivec3, inv_h: float, pairs: ti.template(), pair_count: ti.template()):
+    """Append (t, u), body order first, if c — a cell both overlapping boxes cover — holds
+    the lower corner of the boxes' intersection (so each pair is appended in one cell)."""
+    if all(ti.max(cell_of(lo_t, inv_h), cell_of(lo_u, inv_h)) == c):
+        k = ti.atomic_add(pair_count[0], 1)
+        if k < pairs.shape[0]:
+            pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
 
 
 @ti.func
 def query_coarser(t: ti.i32, top_level: ti.i32, table: ti.template(), inv_h0: float,
                   box_lo: ti.template(), box_hi: ti.template(), tri_level: ti.template(),
                   tri_body: ti.template(), level_count: ti.template(), bucket_start: ti.template(),
-                  entry_tri: ti.template(), entry_cell: ti.template(), pairs: ti.template(),
+                  entry_tri: ti.template(), entry_cell: ti.template(), entry_body: ti.template(),
+                  entry_lo: ti.template(), entry_hi: ti.template(), pairs: ti.template(),
                   pair_count: ti.template()):
     """Report t's partners binned in one table at levels above t's own, looked up in the
     (at most 2 per axis) cells t's box covers at each such level."""
     mask = bucket_start.shape[0] - 2
+    lo_t, hi_t = box_lo[t], box_hi[t]
+    body_t = tri_body[t]
     for level in range(tri_level[t] + 1, top_level + 1):
         if level_count[table, level] > 0:
             inv_h = level_inv_h(inv_h0, level)
-            c0, c1 = cell_of(box_lo[t], inv_h), cell_of(box_hi[t], inv_h)
+            c0, c1 = cell_of(lo_t, inv_h), cell_of(hi_t, inv_h)
             for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
                 c = ivec3(x, y, z)
                 b = bucket_of(level, c, mask)
                 for e in range(bucket_start[b], bucket_start[b + 1]):
-                    u = entry_tri[e]
-                    if tri_level[u] == level and all(entry_cell[e] == c):
-                        report_pair(t, u, c, inv_h, box_lo, box_hi, tri_body, pairs, pair_count)
+                    if (entry_body[e] != body_t and all(entry_cell[e] == c)
+                            and boxes_overlap(lo_t, hi_t, entry_lo[e], entry_hi[e])):
+                        u = entry_tri[e]
+                        if tri_level[u] == level:
+                            report_pair(t, body_t, lo_t, u, entry_body[e], entry_lo[e], c, inv_h,
+                                        pairs, pair_count)
 
 
 @ti.kernel
@@ -260,11 +280,18 @@ def _find_pairs(
     level_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
     moving_entries: ti.i32,
     moving_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    moving_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
     moving_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
     moving_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
+    moving_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    moving_lo: ti.types.ndarray(dtype=vec3, ndim=1),
+    moving_hi: ti.types.ndarray(dtype=vec3, ndim=1),
     static_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
     static_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
     static_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
+    static_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    static_lo: ti.types.ndarray(dtype=vec3, ndim=1),
+    static_hi: ti.types.ndarray(dtype=vec3, ndim=1),
     pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
     pair_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
     serial: ti.template(),
@@ -274,12 +301,17 @@ def _find_pairs(
     pair_count[0] = 0
     top_moving = -1
     top_static = -1
+    bottom = LEVELS
     ti.loop_config(serialize=True)
     for level in range(LEVELS):
         if level_count[MOVING, level] > 0:
-            ti.atomic_max(top_moving, level)
+            top_moving = level
+            bottom = ti.min(bottom, level)
         if level_count[STATIC, level] > 0:
-            ti.atomic_max(top_static, level)
+            top_static = level
+            bottom = ti.min(bottom, level)
+    # With every triangle at one level there are no unequal-level pairs to look up.
+    n_coarser_queries = tri_group.shape[0] if ti.max(top_moving, top_static) > bottom else 0
     # Equal levels: each moving entry against the later entries of its bucket and
     # the static entries of its cell, so each pair meets once, in one shared cell.
     moving_mask = moving_start.shape[0] - 2
@@ -288,33 +320,44 @@ def _find_pairs(
     for e in range(moving_entries):
         t = moving_tri[e]
         c = moving_cell[e]
+        body_t = moving_body[e]
+        lo_t, hi_t = moving_lo[e], moving_hi[e]
         level = tri_level[t]
         inv_h = level_inv_h(inv_h0, level)
         b = bucket_of(level, c, moving_mask)
-        for f in range(e + 1, moving_start[b + 1]):
-            u = moving_tri[f]
-            if tri_level[u] == level and all(moving_cell[f] == c):
-                report_pair(t, u, c, inv_h, box_lo, box_hi, tri_body, pairs, pair_count)
+        # A bucket holding one body's triangles only has no pair to offer.
+        end = moving_start[b + 1] if moving_bodies[b][0] != moving_bodies[b][1] else 0
+        for f in range(e + 1, end):
+            if (moving_body[f] != body_t and all(moving_cell[f] == c)
+                    and boxes_overlap(lo_t, hi_t, moving_lo[f], moving_hi[f])):
+                u = moving_tri[f]
+                if tri_level[u] == level:
+                    report_pair(t, body_t, lo_t, u, moving_body[f], moving_lo[f], c, inv_h, pairs, pair_count)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
             for f in range(static_start[b], static_start[b + 1]):
-                u = static_tri[f]
-                if tri_level[u] == level and all(static_cell[f] == c):
-                    report_pair(t, u, c, inv_h, box_lo, box_hi, tri_body, pairs, pair_count)
+                if (static_body[f] != body_t and all(static_cell[f] == c)
+                        and boxes_overlap(lo_t, hi_t, static_lo[f], static_hi[f])):
+                    u = static_tri[f]
+                    if tri_level[u] == level:
+                        report_pair(t, body_t, lo_t, u, static_body[f], static_lo[f], c, inv_h, pairs, pair_count)
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
-    for t in range(tri_group.shape[0]):
+    for t in range(n_coarser_queries):
         if tri_level[t] < 0:
             pass
         elif tri_group[t] == MOVING:
             query_coarser(t, top_moving, MOVING, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          moving_start, moving_tri, moving_cell, pairs, pair_count)
+                          moving_start, moving_tri, moving_cell, moving_body, moving_lo, moving_hi,
+                          pairs, pair_count)
             query_coarser(t, top_static, STATIC, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          static_start, static_tri, static_cell, pairs, pair_count)
+                          static_start, static_tri, static_cell, static_body, static_lo, static_hi,
+                          pairs, pair_count)
         else:
             query_coarser(t, top_moving, MOVING, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          moving_start, moving_tri, moving_cell, pairs, pair_count)
+                          moving_start, moving_tri, moving_cell, moving_body, moving_lo, moving_hi,
+                          pairs, pair_count)
     return pair_count[0]
 
 
@@ -322,19 +365,26 @@ def _next_pow2(n: int) -> int:
     return 1 << max(0, int(n - 1).bit_length())
 
 
+# Base cell size over the median triangle box extent. Smaller cells bin each
+# triangle into more cells, larger ones crowd more triangles into each; on
+# tessellated surfaces (benchmarks/broadphase.py) 1.5 is near the best of both.
+CELL_OVER_MEDIAN = 1.5
+
+
 def default_cell_size(box_extent: np.ndarray) -> float:
-    """Base cell size from triangle box extents (n,): their median, so that a few huge
-    or tiny triangles do not set the grid for the rest; 1 if every box is a point."""
+    """Base cell size from triangle box extents (n,): CELL_OVER_MEDIAN × their median, so
+    that a few huge or tiny triangles do not set the grid for the rest; 1 if every box
+    is a point."""
     positive = box_extent[box_extent > 0]
-    return float(np.median(positive)) if len(positive) else 1.0
+    return CELL_OVER_MEDIAN * float(np.median(positive)) if len(positive) else 1.0
 
 
 class _HashTable:
     """The hash-grid buffers of one group, grown (never shrunk) to fit its entries."""
 
     def __init__(self):
-        self.bucket_start = self.bucket_fill = self.block_sum = None
-        self.entry_tri = self.entry_cell = None
+        self.bucket_start = self.bucket_fill = self.bucket_bodies = self.block_sum = None
+        self.entry_tri = self.entry_cell = self.entry_body = self.entry_lo = self.entry_hi = None
         self.entry_capacity = -1
         self.entries = 0
 
@@ -343,14 +393,23 @@ class _HashTable:
         if entries <= self.entry_capacity:
             return
         capacity = max(2 * self.entry_capacity, entries, 1)
-        n_buckets = _next_pow2(2 * capacity)
+        n_buckets = _next_pow2(capacity)
         self.bucket_start = ti.ndarray(ti.i32, shape=n_buckets + 1)
         self.bucket_start.fill(0)
         self.bucket_fill = ti.ndarray(ti.i32, shape=n_buckets)
+        self.bucket_bodies = ti.ndarray(ivec2, shape=n_buckets)
+        self.bucket_bodies.fill(0)
         self.block_sum = ti.ndarray(ti.i32, shape=(n_buckets + SCAN_BLOCK - 1) // SCAN_BLOCK)
         self.entry_tri = ti.ndarray(ti.i32, shape=capacity)
         self.entry_cell = ti.ndarray(ivec3, shape=capacity)
+        self.entry_body = ti.ndarray(ti.i32, shape=capacity)
+        real3 = ti.types.vector(3, ti.f64 if runtime.precision() == "f64" else ti.f32)
+        self.entry_lo = ti.ndarray(real3, shape=capacity)
+        self.entry_hi = ti.ndarray(real3, shape=capacity)
         self.entry_capacity = capacity
+
+    def entry_arrays(self) -> tuple:
+        return self.entry_tri, self.entry_cell, self.entry_body, self.entry_lo, self.entry_hi
 
 
 class UniformGrid:
@@ -435,8 +494,9 @@ class UniformGrid:
                                   self.body_hi, self.tri_level, self.level_count, serial)
         table = self.tables[group]
         table.reserve(entries)
-        _bin_group(self.tri_group, group, inv_h0, self.box_lo, self.box_hi, self.tri_level,
-                   table.bucket_start, table.bucket_fill, table.block_sum, table.entry_tri, table.entry_cell,
+        _bin_group(self.tri_group, self.tri_body, group, inv_h0, self.box_lo, self.box_hi, self.tri_level,
+                   table.bucket_start, table.bucket_fill, table.bucket_bodies, table.block_sum,
+                   *table.entry_arrays(),
                    runtime.serial_loops(entries))
 
     def bin_static(self, particle_x) -> None:
@@ -461,8 +521,8 @@ class UniformGrid:
         while True:
             n = _find_pairs(self.tri_group, self.tri_body, 1.0 / self.cell_size, self.box_lo, self.box_hi,
                             self.tri_level, self.level_count, moving.entries,
-                            moving.bucket_start, moving.entry_tri, moving.entry_cell,
-                            static.bucket_start, static.entry_tri, static.entry_cell,
+                            moving.bucket_start, moving.bucket_bodies, *moving.entry_arrays(),
+                            static.bucket_start, *static.entry_arrays(),
                             self.pairs, self.pair_count, runtime.serial_loops(moving.entries))
             if n <= self.pair_capacity:
                 break
