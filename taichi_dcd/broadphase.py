@@ -83,6 +83,7 @@ def boxes_overlap(lo_a: vec3, hi_a: vec3, lo_b: vec3, hi_b: vec3) -> bool:
 @ti.kernel
 def _triangle_boxes(
     particle_x: ti.types.ndarray(dtype=vec3, ndim=1),
+    particle_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_indices: ti.types.ndarray(dtype=ivec3, ndim=1),
     tri_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -98,10 +99,12 @@ def _triangle_boxes(
     level_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
     serial: ti.template(),
 ) -> ti.i32:
-    """Boxes of one group's triangles and bodies, then each triangle's level, or -1 for a
-    moving triangle whose box meets no other body's box (it can have no pair, so it is
-    neither binned nor queried); returns the group's number of (cell, triangle) entries."""
+    """Boxes of one group's bodies (from their vertices) and triangles, and each triangle's
+    level, or -1 for a moving triangle whose box meets no other body's box (it can have
+    no pair, so it is neither binned nor queried); returns the group's number of
+    (cell, triangle) entries."""
     n_bodies = body_lo.shape[0]
+    slack = ti.static(BOX_SLACK * runtime.tolerance())
     ti.loop_config(serialize=True)
     for level in range(LEVELS):
         level_count[group, level] = 0
@@ -111,25 +114,32 @@ def _triangle_boxes(
             body_lo[k] = vec3(ti.math.inf)
             body_hi[k] = vec3(-ti.math.inf)
     ti.loop_config(serialize=serial)
+    for v in range(particle_body.shape[0]):
+        k = particle_body[v]
+        if k >= 0 and body_static[k] == group:
+            p = particle_x[v]
+            ti.atomic_min(body_lo[k], p)
+            ti.atomic_max(body_hi[k], p)
+    # A body's pad is at least that of any of its triangles.
+    ti.loop_config(serialize=True)
+    for k in range(n_bodies):
+        if body_static[k] == group:
+            pad = margin + slack * (body_hi[k] - body_lo[k]).max()
+            body_lo[k] -= pad
+            body_hi[k] += pad
+    entries = 0
+    ti.loop_config(serialize=serial)
     for t in range(tri_indices.shape[0]):
         if tri_group[t] == group:
             i = tri_indices[t]
             p0, p1, p2 = particle_x[i[0]], particle_x[i[1]], particle_x[i[2]]
             lo = ti.min(p0, p1, p2)
             hi = ti.max(p0, p1, p2)
-            pad = margin + ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+            pad = margin + slack * (hi - lo).max()
             lo -= pad
             hi += pad
             box_lo[t] = lo
             box_hi[t] = hi
-            b = tri_body[t]
-            ti.atomic_min(body_lo[b], lo)
-            ti.atomic_max(body_hi[b], hi)
-    entries = 0
-    ti.loop_config(serialize=serial)
-    for t in range(tri_indices.shape[0]):
-        if tri_group[t] == group:
-            lo, hi = box_lo[t], box_hi[t]
             active = group == STATIC or n_bodies > CULL_MAX_BODIES
             if not active:
                 b = tri_body[t]
@@ -460,6 +470,13 @@ class UniformGrid:
         body_static[tri_body[tri_static]] = STATIC
         if m and np.any(body_static[tri_body[~tri_static]] == STATIC):
             raise ValueError("a body has both static and moving triangles")
+        n_particles = int(tri_indices.max()) + 1 if m else 1
+        particle_body = np.full(n_particles, -1, dtype=np.int32)
+        particle_body[tri_indices] = tri_body[:, None]
+        if m and np.any(particle_body[tri_indices] != tri_body[:, None]):
+            raise ValueError("a vertex is shared by triangles of different bodies; give each body its own vertices")
+        self.particle_body = ti.ndarray(ti.i32, shape=n_particles)
+        self.particle_body.from_numpy(particle_body)
         self.body_static = ti.ndarray(ti.i32, shape=n_bodies)
         self.body_static.from_numpy(body_static)
         self.body_lo = ti.ndarray(ti.types.vector(3, real), shape=n_bodies)
@@ -489,7 +506,8 @@ class UniformGrid:
     def _bin(self, particle_x, group: int) -> None:
         inv_h0 = 1.0 / self.cell_size
         serial = runtime.serial_loops(self.n_tris)
-        entries = _triangle_boxes(particle_x, self.tri_indices, self.tri_group, self.tri_body, self.body_static,
+        entries = _triangle_boxes(particle_x, self.particle_body, self.tri_indices, self.tri_group, self.tri_body,
+                                  self.body_static,
                                   group, self.margin, inv_h0, self.box_lo, self.box_hi, self.body_lo,
                                   self.body_hi, self.tri_level, self.level_count, serial)
         table = self.tables[group]
