@@ -252,6 +252,21 @@ def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32
 
 
 @ti.func
+def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i32, c: ivec3, inv_h: float,
+                 first: ti.i32, end: ti.i32, tri_level: ti.template(), entry_tri: ti.template(),
+                 entry_cell: ti.template(), entry_body: ti.template(), entry_lo: ti.template(),
+                 entry_hi: ti.template(), pairs: ti.template(), pair_count: ti.template()):
+    """Report t against the entries [first, end) of a bucket that are binned in cell c at
+    `level`, belong to another body and have an overlapping box."""
+    for f in range(first, end):
+        if (entry_body[f] != body_t and all(entry_cell[f] == c)
+                and boxes_overlap(lo_t, hi_t, entry_lo[f], entry_hi[f])):
+            u = entry_tri[f]
+            if tri_level[u] == level:
+                report_pair(t, body_t, lo_t, u, entry_body[f], entry_lo[f], c, inv_h, pairs, pair_count)
+
+
+@ti.func
 def query_coarser(t: ti.i32, top_level: ti.i32, table: ti.template(), inv_h0: float,
                   box_lo: ti.template(), box_hi: ti.template(), tri_level: ti.template(),
                   tri_body: ti.template(), level_count: ti.template(), bucket_start: ti.template(),
@@ -270,13 +285,8 @@ def query_coarser(t: ti.i32, top_level: ti.i32, table: ti.template(), inv_h0: fl
             for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
                 c = ivec3(x, y, z)
                 b = bucket_of(level, c, mask)
-                for e in range(bucket_start[b], bucket_start[b + 1]):
-                    if (entry_body[e] != body_t and all(entry_cell[e] == c)
-                            and boxes_overlap(lo_t, hi_t, entry_lo[e], entry_hi[e])):
-                        u = entry_tri[e]
-                        if tri_level[u] == level:
-                            report_pair(t, body_t, lo_t, u, entry_body[e], entry_lo[e], c, inv_h,
-                                        pairs, pair_count)
+                scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_start[b], bucket_start[b + 1],
+                             tri_level, entry_tri, entry_cell, entry_body, entry_lo, entry_hi, pairs, pair_count)
 
 
 @ti.kernel
@@ -337,20 +347,12 @@ def _find_pairs(
         b = bucket_of(level, c, moving_mask)
         # A bucket holding one body's triangles only has no pair to offer.
         end = moving_start[b + 1] if moving_bodies[b][0] != moving_bodies[b][1] else 0
-        for f in range(e + 1, end):
-            if (moving_body[f] != body_t and all(moving_cell[f] == c)
-                    and boxes_overlap(lo_t, hi_t, moving_lo[f], moving_hi[f])):
-                u = moving_tri[f]
-                if tri_level[u] == level:
-                    report_pair(t, body_t, lo_t, u, moving_body[f], moving_lo[f], c, inv_h, pairs, pair_count)
+        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end, tri_level,
+                     moving_tri, moving_cell, moving_body, moving_lo, moving_hi, pairs, pair_count)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
-            for f in range(static_start[b], static_start[b + 1]):
-                if (static_body[f] != body_t and all(static_cell[f] == c)
-                        and boxes_overlap(lo_t, hi_t, static_lo[f], static_hi[f])):
-                    u = static_tri[f]
-                    if tri_level[u] == level:
-                        report_pair(t, body_t, lo_t, u, static_body[f], static_lo[f], c, inv_h, pairs, pair_count)
+            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_start[b], static_start[b + 1], tri_level,
+                         static_tri, static_cell, static_body, static_lo, static_hi, pairs, pair_count)
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
