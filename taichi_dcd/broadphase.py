@@ -415,7 +415,7 @@ class _HashTable:
         self.entry_tri = ti.ndarray(ti.i32, shape=capacity)
         self.entry_cell = ti.ndarray(ivec3, shape=capacity)
         self.entry_body = ti.ndarray(ti.i32, shape=capacity)
-        real3 = ti.types.vector(3, ti.f64 if runtime.precision() == "f64" else ti.f32)
+        real3 = ti.types.vector(3, runtime.real_type())
         self.entry_lo = ti.ndarray(real3, shape=capacity)
         self.entry_hi = ti.ndarray(real3, shape=capacity)
         self.entry_capacity = capacity
@@ -430,7 +430,7 @@ class UniformGrid:
     tri_indices (m, 3) int: vertex indices into the particle array, global over all
     bodies; tri_body (m,) int: the body of each triangle; tri_static (m,) bool:
     triangles of static bodies (binned once, by `bin_static`). cell_size: the base
-    cell size in scene units (default: the median box extent at the first query);
+    cell size in scene units (default: `default_cell_size` of the boxes at the first query);
     margin: every box is inflated by this much (scene units). pair_capacity: the
     initial size of the pair buffer, grown on overflow.
     """
@@ -463,7 +463,7 @@ class UniformGrid:
             self.tri_indices.from_numpy(tri_indices)
             self.tri_body.from_numpy(tri_body)
             self.tri_group.from_numpy(np.where(tri_static, STATIC, MOVING).astype(np.int32))
-        real = ti.f64 if runtime.precision() == "f64" else ti.f32
+        real = runtime.real_type()
         self.box_lo = ti.ndarray(ti.types.vector(3, real), shape=size)
         self.box_hi = ti.ndarray(ti.types.vector(3, real), shape=size)
         self.tri_level = ti.ndarray(ti.i32, shape=size)

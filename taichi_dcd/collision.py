@@ -143,8 +143,7 @@ def find_contacts(meshes, cell_size: float | None = None) -> MeshContacts:
 
     pipeline = CollisionPipeline(tri_indices, tri_body, cell_size=cell_size,
                                  pair_capacity=max(1024, 4 * len(tri_indices)))
-    particle_x = ti.ndarray(ti.types.vector(3, ti.f64 if dtype == np.float64 else ti.f32),
-                            shape=max(len(x), 1))
+    particle_x = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(len(x), 1))
     if len(x):
         particle_x.from_numpy(x)
     pipeline.run(particle_x)

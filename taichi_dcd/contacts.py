@@ -46,7 +46,7 @@ class Contacts:
         self._allocate(capacity)
 
     def _allocate(self, capacity: int) -> None:
-        real = ti.f64 if runtime.precision() == "f64" else ti.f32
+        real = runtime.real_type()
         vec3 = ti.types.vector(3, real)
         self.pair = ti.ndarray(ivec2, shape=capacity)
         self.depth = ti.ndarray(real, shape=capacity)

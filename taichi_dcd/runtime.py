@@ -108,6 +108,11 @@ def precision() -> str:
     return _settings["precision"]
 
 
+def real_type():
+    """Taichi float type of the kernels (ti.f64 or ti.f32), for allocating arrays."""
+    return ti.f64 if precision() == "f64" else ti.f32
+
+
 def real_dtype() -> type:
     """NumPy float type matching the kernels' precision."""
     return np.float64 if precision() == "f64" else np.float32
