@@ -72,3 +72,49 @@ class Contacts:
             side=self.side.to_numpy()[:n],
             point=self.point.to_numpy()[:n],
         )
+
+
+class ContactConstraints:
+    """The solver's contact constraints of one substep (Taichi ndarrays, fixed capacity).
+
+    Row k ties a point of the moved triangle `tri[k][0]` (barycentric weights
+    `bary_moved[k]`) to a point of the other triangle `tri[k][1]` (`bary_other[k]`);
+    the moved point is pushed along the unit `normal[k]` until it reaches the other
+    point's plane. `depth[k]` is C at detection, `lambda_n[k]`, `lambda_t[k]` the
+    normal and static-friction multipliers accumulated this substep (kg·m), `vn0[k]`
+    the relative normal velocity before the solve (m/s, for restitution),
+    `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s).
+    """
+
+    def __init__(self, capacity: int = 1024):
+        if capacity < 1:
+            raise ValueError(f"contact capacity must be at least 1, got {capacity}")
+        runtime.ensure_init()
+        self.count = 0
+        self._allocate(capacity)
+
+    def _allocate(self, capacity: int) -> None:
+        real = runtime.real_type()
+        vec3 = ti.types.vector(3, real)
+        self.tri = ti.ndarray(ivec2, shape=capacity)
+        self.bary_moved = ti.ndarray(vec3, shape=capacity)
+        self.bary_other = ti.ndarray(vec3, shape=capacity)
+        self.normal = ti.ndarray(vec3, shape=capacity)
+        self.depth = ti.ndarray(real, shape=capacity)
+        self.lambda_n = ti.ndarray(real, shape=capacity)
+        self.lambda_t = ti.ndarray(real, shape=capacity)
+        self.vn0 = ti.ndarray(real, shape=capacity)
+        self.impulse_t = ti.ndarray(vec3, shape=capacity)
+
+    @property
+    def capacity(self) -> int:
+        return self.depth.shape[0]
+
+    def grow(self, needed: int) -> None:
+        """Reallocate for at least `needed` rows (contents are lost)."""
+        self._allocate(max(needed, 2 * self.capacity))
+
+    def arrays(self) -> tuple:
+        """The ndarrays in the order the solver's kernels take them."""
+        return (self.tri, self.bary_moved, self.bary_other, self.normal, self.depth,
+                self.lambda_n, self.lambda_t, self.vn0, self.impulse_t)

@@ -82,3 +82,24 @@ def lex_compare(u: vec3, v: vec3) -> int:
             elif u[k] > v[k]:
                 result = 1
     return result
+
+
+@ti.func
+def barycentric(p: vec3, a: vec3, b: vec3, c: vec3) -> vec3:
+    """Barycentric weights (u, v, w) of p's projection onto the plane of triangle
+    (a, b, c), u·a + v·b + w·c; (1/3, 1/3, 1/3) for a zero-area triangle."""
+    e0 = b - a
+    e1 = c - a
+    d = p - a
+    d00 = e0.dot(e0)
+    d01 = e0.dot(e1)
+    d11 = e1.dot(e1)
+    d20 = d.dot(e0)
+    d21 = d.dot(e1)
+    den = d00 * d11 - d01 * d01
+    out = vec3(1.0 / 3.0)
+    if den > 0.0:
+        v = (d11 * d20 - d01 * d21) / den
+        w = (d00 * d21 - d01 * d20) / den
+        out = vec3(1.0 - v - w, v, w)
+    return out

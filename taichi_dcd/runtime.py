@@ -60,6 +60,10 @@ def init(
         # a predicate, so a touching pair could be a hit in one kernel and not in
         # another; the narrow phase costs the same without it.
         fast_math=False,
+        # Taichi's own IR optimiser takes 40 s on the solver's one-kernel frame (its
+        # nested serial loops inline the narrow phase and the rigid-body maths) and
+        # 5 s without; LLVM still optimises, and no kernel here ran slower without it.
+        advanced_optimization=False,
     )
     if cpu_threads is not None:
         kwargs["cpu_max_num_threads"] = int(cpu_threads)

@@ -1,0 +1,199 @@
+"""ModelBuilder: numpy meshes in, a Model and its initial State out. The only place
+that allocates the simulation's fields.
+
+Each body is a closed, consistently outward-oriented triangle mesh given in world
+space. A rigid body's frame is its centre of mass with the world's axes at build
+time, so its quaternion starts at identity and its inertia tensor is the mesh's
+about the centre of mass in world axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from . import runtime
+from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
+
+DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
+
+
+@dataclass
+class BodySpec:
+    """One body before building. vertices (n, 3) m in world space, faces (m, 3) int;
+    kind "rigid" | "soft" | "static"; density kg/m³; velocity m/s; force N (constant,
+    at the centre of mass); friction (Coulomb μ, static and dynamic); restitution in [0, 1];
+    compliance m/N (soft bodies' edges)."""
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    kind: str = "rigid"
+    density: float = 1000.0
+    velocity: tuple = (0.0, 0.0, 0.0)
+    force: tuple = (0.0, 0.0, 0.0)
+    friction: float = 0.5
+    restitution: float = 0.0
+    compliance: float = DEFAULT_SOFT_COMPLIANCE
+
+
+def checked_mesh(name: str, vertices, faces) -> trimesh.Trimesh:
+    """The body's mesh with duplicate vertices merged, or a one-line ValueError naming the
+    body: non-numeric or non-finite coordinates, bad face indices, empty, not closed,
+    inconsistent winding, inward orientation."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise ValueError(f"body {name!r}: vertices must be a non-empty (n, 3) array, got shape {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"body {name!r}: faces must be a non-empty integer (m, 3) array, got shape {f.shape}")
+    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+    if len(bad):
+        raise ValueError(f"body {name!r}: vertex {bad[0]} has a NaN or infinite coordinate")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ValueError(f"body {name!r}: face indices must lie in [0, {len(v)}), got {f.min()}..{f.max()}")
+    mesh = trimesh.Trimesh(v, f, process=True, validate=False)
+    if not mesh.is_watertight:
+        edges = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
+        raise ValueError(f"body {name!r}: mesh is not closed ({len(edges)} boundary edges)")
+    if not mesh.is_winding_consistent:
+        raise ValueError(f"body {name!r}: mesh winding is inconsistent (neighbouring faces disagree)")
+    if not mesh.volume > 0.0:
+        raise ValueError(f"body {name!r}: mesh is oriented inward (volume {mesh.volume:.3g} m³ is not positive)")
+    return mesh
+
+
+class ModelBuilder:
+    """Collects bodies as numpy data; `finalize()` allocates the Model and State once."""
+
+    def __init__(self):
+        self.specs: list[BodySpec] = []
+        self.meshes: list[trimesh.Trimesh] = []
+
+    def add_body(self, spec: BodySpec) -> int:
+        """Check and add a body; returns its index. Raises ValueError naming the body."""
+        if spec.kind not in KIND_NAMES:
+            raise ValueError(f"body {spec.name!r}: unknown kind {spec.kind!r} (rigid, soft or static)")
+        if any(s.name == spec.name for s in self.specs):
+            raise ValueError(f"body {spec.name!r}: duplicate body name")
+        if spec.kind != "static" and not spec.density > 0.0:
+            raise ValueError(f"body {spec.name!r}: density must be positive, got {spec.density}")
+        if spec.kind == "soft" and not spec.compliance >= 0.0:
+            raise ValueError(f"body {spec.name!r}: compliance must be >= 0, got {spec.compliance}")
+        self.meshes.append(checked_mesh(spec.name, spec.vertices, spec.faces))
+        self.specs.append(spec)
+        return len(self.specs) - 1
+
+    def finalize(self) -> tuple[Model, State]:
+        """Allocate the Model and its initial State (Taichi must be initialised)."""
+        import taichi as ti
+
+        runtime.ensure_init()
+        if not self.specs:
+            raise ValueError("a model needs at least one body")
+        n_b = len(self.specs)
+        kind = np.array([KIND_NAMES[s.kind] for s in self.specs], np.int32)
+        inv_mass = np.zeros(n_b)
+        inertia = np.zeros((n_b, 3, 3))
+        inv_inertia = np.zeros((n_b, 3, 3))
+        com = np.zeros((n_b, 3))
+        vertex_local, vertex_world, vertex_body, vertex_inv_mass, tris, tri_body = [], [], [], [], [], []
+        edges, edge_rest = [], []
+        vertex_range = np.zeros((n_b, 2), np.int32)
+        tri_range = np.zeros((n_b, 2), np.int32)
+        rest_volume = np.zeros(n_b)
+        bodies = []
+        v_off = t_off = 0
+        for k, (spec, mesh) in enumerate(zip(self.specs, self.meshes)):
+            v = np.asarray(mesh.vertices, np.float64)
+            f = np.asarray(mesh.faces, np.int64)
+            volume = float(mesh.volume)
+            mass = spec.density * volume
+            rest_volume[k] = volume
+            if kind[k] == RIGID:
+                props = mesh.mass_properties  # unit density: scale mass and inertia by density
+                com[k] = props["center_mass"]
+                inv_mass[k] = 1.0 / mass
+                inertia[k] = spec.density * np.asarray(props["inertia"])
+                inv_inertia[k] = np.linalg.inv(inertia[k])
+            elif kind[k] == STATIC:
+                com[k] = v.mean(axis=0)
+                mass = float("inf")
+            else:  # soft: equal particle masses, centre = vertex mean
+                com[k] = v.mean(axis=0)
+                vertex_inv_mass.append(np.full(len(v), len(v) / mass))
+                e = np.asarray(mesh.edges_unique, np.int64)
+                edges.append(e + v_off)
+                edge_rest.append(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1))
+            if kind[k] != SOFT:
+                vertex_inv_mass.append(np.zeros(len(v)))
+            vertex_local.append(v - com[k])
+            vertex_world.append(v)
+            vertex_body.append(np.full(len(v), k, np.int32))
+            tris.append(f + v_off)
+            tri_body.append(np.full(len(f), k, np.int32))
+            vertex_range[k] = (v_off, v_off + len(v))
+            tri_range[k] = (t_off, t_off + len(f))
+            bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume))
+            v_off += len(v)
+            t_off += len(f)
+
+        has_soft = bool((kind == SOFT).any())
+        n_v, n_t = v_off, t_off
+        n_e = int(sum(len(e) for e in edges))
+        i32 = ti.i32
+        real = runtime.real_dtype()
+
+        m = Model(
+            bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
+            body_kind=_from(ti.field(i32, shape=n_b), kind),
+            body_inv_mass=_from(scalar_field(n_b), inv_mass.astype(real)),
+            body_inertia=_from(mat_field(n_b), inertia.astype(real)),
+            body_inv_inertia=_from(mat_field(n_b), inv_inertia.astype(real)),
+            body_force=_from(vec_field(n_b), np.array([s.force for s in self.specs], real)),
+            body_friction=_from(scalar_field(n_b), np.array([s.friction for s in self.specs], real)),
+            body_restitution=_from(scalar_field(n_b), np.array([s.restitution for s in self.specs], real)),
+            body_vertex_range=_from(ti.Vector.field(2, i32, shape=n_b), vertex_range),
+            body_tri_range=_from(ti.Vector.field(2, i32, shape=n_b), tri_range),
+            body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
+            body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
+            vertex_body=_from(ti.field(i32, shape=n_v), np.concatenate(vertex_body)),
+            vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),
+            vertex_inv_mass=_from(scalar_field(n_v), np.concatenate(vertex_inv_mass).astype(real)),
+            tri_indices=_from(ti.Vector.field(3, i32, shape=n_t), np.concatenate(tris).astype(np.int32)),
+            tri_body=_from(ti.field(i32, shape=n_t), np.concatenate(tri_body)),
+            tri_indices_np=np.concatenate(tris).astype(np.int32),
+            tri_body_np=np.concatenate(tri_body),
+        )
+        if has_soft:
+            m.edge_indices = _from(ti.Vector.field(2, i32, shape=n_e), np.concatenate(edges).astype(np.int32))
+            m.edge_rest = _from(scalar_field(n_e), np.concatenate(edge_rest).astype(real))
+
+        velocity = np.array([s.velocity for s in self.specs], real)
+        vertex_v = np.concatenate([np.tile(velocity[k], (b.vertex_count, 1)) for k, b in enumerate(bodies)])
+        quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], real), (n_b, 1))
+        x_world = np.concatenate(vertex_world).astype(real)
+        s = State(
+            body_x=_from(vec_field(n_b), com.astype(real)),
+            body_q=_from(vec_field(n_b, 4), quat),
+            body_v=_from(vec_field(n_b), np.where((kind == STATIC)[:, None], 0.0, velocity).astype(real)),
+            body_w=_from(vec_field(n_b), np.zeros((n_b, 3), real)),
+            body_x_prev=_from(vec_field(n_b), com.astype(real)),
+            body_q_prev=_from(vec_field(n_b, 4), quat),
+            vertex_x=_from(vec_field(n_v), x_world),
+            vertex_x_prev=_from(vec_field(n_v if has_soft else 0), x_world if has_soft else x_world[:0]),
+            vertex_v=_from(vec_field(n_v if has_soft else 0), vertex_v.astype(real) if has_soft else x_world[:0]),
+        )
+        return m, s
+
+
+def _from(fld, data: np.ndarray):
+    """Fill a field (at least one row) from `data`, padding an empty array with zeros."""
+    data = np.asarray(data)
+    if len(data) < fld.shape[0]:
+        pad = np.zeros((fld.shape[0] - len(data),) + data.shape[1:], dtype=data.dtype)
+        data = np.concatenate([data, pad]) if len(data) else pad
+    fld.from_numpy(data)
+    return fld

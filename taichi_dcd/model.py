@@ -1,0 +1,118 @@
+"""Model (what does not change during a run) and State (what does), as Taichi fields.
+
+Both are allocated once by `ModelBuilder.finalize`; the solver reads the Model and
+advances the State in place. Units: metres, kilograms, seconds.
+
+Every body's vertices live in one global array `vertex_x` (world space), which is
+what the collision pipeline tests. A rigid or static body's vertices are derived
+from its pose (`body_x`, `body_q`) and body-frame offsets `vertex_local`; a soft
+body's vertices are its particles.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+
+STATIC = 0
+RIGID = 1
+SOFT = 2
+KIND_NAMES = {"static": STATIC, "rigid": RIGID, "soft": SOFT}
+
+
+@dataclass
+class BodyInfo:
+    """Per-body facts kept on the Python side (names, index ranges, mesh faces)."""
+
+    name: str
+    kind: str
+    vertex_start: int
+    vertex_count: int
+    tri_start: int
+    tri_count: int
+    faces: np.ndarray  # (tri_count, 3) local vertex indices
+    mass: float
+    rest_volume: float
+
+
+@dataclass
+class Model:
+    """Static data. Sizes: B bodies, V vertices, T triangles, E soft edges (0 without soft bodies).
+
+    body_kind (B,) i32 STATIC/RIGID/SOFT; body_inv_mass (B,); body_inertia, body_inv_inertia
+    (B,) mat3 in the body frame (kg·m², about the centre of mass); body_force (B,) vec3 N at the
+    centre of mass; body_friction, body_restitution (B,); body_vertex_range, body_tri_range (B,)
+    ivec2 [start, end); body_compliance (B,) m/N of a soft body's edges; body_rest_volume (B,) m³.
+    vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
+    vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
+    indices; tri_body (T,) i32. edge_indices (E,) ivec2; edge_rest (E,) m.
+    """
+
+    bodies: list[BodyInfo]
+    n_bodies: int
+    n_vertices: int
+    n_tris: int
+    n_edges: int
+    has_soft: bool
+    body_kind: ti.Field
+    body_inv_mass: ti.Field
+    body_inertia: ti.Field
+    body_inv_inertia: ti.Field
+    body_force: ti.Field
+    body_friction: ti.Field
+    body_restitution: ti.Field
+    body_vertex_range: ti.Field
+    body_tri_range: ti.Field
+    body_compliance: ti.Field
+    body_rest_volume: ti.Field
+    vertex_body: ti.Field
+    vertex_local: ti.Field
+    vertex_inv_mass: ti.Field
+    tri_indices: ti.Field
+    tri_body: ti.Field
+    edge_indices: ti.Field | None = None
+    edge_rest: ti.Field | None = None
+    tri_indices_np: np.ndarray = field(default=None, repr=False)
+    tri_body_np: np.ndarray = field(default=None, repr=False)
+
+    def body_index(self, name: str) -> int:
+        for k, b in enumerate(self.bodies):
+            if b.name == name:
+                return k
+        raise KeyError(f"no body named {name!r}")
+
+
+@dataclass
+class State:
+    """Time-varying data. body_x (B,) vec3 centre of mass (m); body_q (B,) vec4 unit
+    quaternion (w, x, y, z); body_v (B,) m/s; body_w (B,) rad/s, world frame; *_prev the
+    same at the start of the substep. vertex_x (V,) world positions; vertex_x_prev and
+    vertex_v (V,) for soft particles. time in seconds."""
+
+    body_x: ti.Field
+    body_q: ti.Field
+    body_v: ti.Field
+    body_w: ti.Field
+    body_x_prev: ti.Field
+    body_q_prev: ti.Field
+    vertex_x: ti.Field
+    vertex_x_prev: ti.Field
+    vertex_v: ti.Field
+    time: float = 0.0
+    substeps_done: int = 0
+
+
+def vec_field(n: int, dim: int = 3, dtype=None) -> ti.Field:
+    """A field of `dim`-vectors of the kernels' float type (or dtype), at least one row."""
+    return ti.Vector.field(dim, dtype or runtime.real_type(), shape=max(n, 1))
+
+
+def scalar_field(n: int, dtype=None) -> ti.Field:
+    return ti.field(dtype or runtime.real_type(), shape=max(n, 1))
+
+
+def mat_field(n: int) -> ti.Field:
+    real = runtime.real_type()
+    return ti.Matrix.field(3, 3, real, shape=max(n, 1))

@@ -1,0 +1,703 @@
+"""XPBD time stepping of rigid, soft and static bodies with the unified triangle-pair
+contacts (DESIGN.md §3). The solver only sequences kernels; each physical step is a
+`ti.func` over one body, particle, constraint or contact.
+
+One substep of length h:
+1. predict: v += h·(g + F/m), x_prev = x, x += h·v; ω += h·I⁻¹(−ω × Iω), q += h/2·[ω,0]⊗q;
+2. contacts: every intersecting triangle pair of different bodies (not both static)
+   gives C, the push normal N and the deepest point of the moved triangle
+   (Kikuchi & Kanai Eq. 6); the constraint ties that point to the point C·N
+   further on, which lies on the other triangle, both kept as barycentric anchors;
+3. `iterations` Gauss-Seidel sweeps: soft edges and volumes (XPBD), contact normals
+   (C = N·(p_other − p_moved) ≥ 0 with generalised inverse masses), then static friction
+   as a positional constraint on the slip the normals left (Müller et al. 2020 §3.5);
+4. velocities v = (x − x_prev)/h, ω from q ⊗ q_prev⁻¹;
+5. `iterations` sweeps of the velocity pass per active contact: restitution and dynamic
+   friction (Müller 2020 §3.6, with accumulated, Coulomb-clamped friction impulses).
+
+Contacts are projected serially (Gauss-Seidel), which is race-free and stays stable
+with hundreds of contacts on one body. Velocities are staggered half a substep
+(leapfrog): the very first predict of a run adds only h/2·a, so free flight under
+constant acceleration reproduces x0 + v0·t + a·t²/2 exactly, not with the O(h)
+error of symplectic Euler.
+
+Small scenes run a whole frame (all its substeps) in one kernel with an in-kernel
+all-pairs box test; large ones use the uniform-grid `CollisionPipeline` each substep.
+"""
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+from .broadphase import BOX_SLACK, boxes_overlap
+from .collision import CollisionPipeline
+from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
+from .contacts import ContactConstraints
+from .geometry import barycentric, longest_edge_sq
+from .model import RIGID, SOFT, STATIC, Model, State, mat_field, scalar_field, vec_field
+from .narrowphase import collide_triangle_pair
+from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
+                    gyroscopic_step, integrate_rotation, quat_rotate)
+
+vec3 = ti.math.vec3
+vec4 = ti.math.vec4
+ivec2 = ti.types.vector(2, ti.i32)
+ivec3 = ti.types.vector(3, ti.i32)
+
+# Above this many triangle pairs between body boxes (summed over body pairs, upper
+# bound) a substep uses the uniform grid instead of the in-kernel all-pairs test.
+BRUTE_FORCE_MAX_PAIRS = 200_000
+# Contacts are checked for duplicates while the buffer holds at most this many rows
+# (the check is quadratic; large scenes' contacts rarely share points exactly).
+DEDUP_MAX_ROWS = 4096
+# A body's or particle's coordinate beyond this many metres counts as an explosion.
+DEFAULT_BOUND = 1e6
+
+
+class SimulationError(RuntimeError):
+    """The simulation produced NaN or left the bounds; message names frame and body."""
+
+
+@ti.data_oriented
+class XPBDSolver:
+    """Advances a State of a Model by frames of `substeps` XPBD substeps.
+
+    gravity: m/s² (3,). broad_phase: "auto" (all-pairs in one kernel per frame for
+    small scenes, the uniform grid per substep for large ones), "brute" or "grid".
+    contact_capacity: initial size of the contact buffer; it grows when a frame
+    overflows it (the frame is then rerun from its start, so no contact is lost).
+    """
+
+    def __init__(self, model: Model, state: State, gravity=(0.0, -9.8, 0.0), broad_phase: str = "auto",
+                 contact_capacity: int | None = None, bound: float = DEFAULT_BOUND):
+        runtime.ensure_init()
+        self.model = model
+        self.state = state
+        self.gravity = np.asarray(gravity, dtype=np.float64).reshape(3)
+        self.bound = float(bound)
+        m = model
+        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        tri_counts = np.array([b.tri_count for b in m.bodies])
+        moving = kind != STATIC
+        pairs_upper = sum(int(tri_counts[a] * tri_counts[b]) for a in range(m.n_bodies)
+                          for b in range(a + 1, m.n_bodies) if moving[a] or moving[b])
+        if broad_phase not in ("auto", "brute", "grid"):
+            raise ValueError(f"unknown broad_phase {broad_phase!r}: auto, brute or grid")
+        self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
+        self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
+        self.contact_growths = 0
+        self.tri_lo = vec_field(m.n_tris)
+        self.tri_hi = vec_field(m.n_tris)
+        self.body_lo = vec_field(m.n_bodies)
+        self.body_hi = vec_field(m.n_bodies)
+        self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
+        self.volume_lambda = scalar_field(m.n_bodies)
+        self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
+        # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
+        self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
+                           vec_field(m.n_bodies)]
+        self.saved_vertex = [vec_field(m.n_vertices), vec_field(m.n_vertices)] if m.has_soft else None
+        if self.use_grid:
+            tri_static = kind[m.tri_body_np] == STATIC
+            self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
+                                              pair_capacity=max(1024, 4 * m.n_tris),
+                                              contact_capacity=max(1024, m.n_tris))
+            self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
+        self.last_contact_count = 0
+
+    # ------------------------------------------------------------------ anchors
+    @ti.func
+    def anchor_world(self, t: ti.i32, bary: vec3, prev: ti.template()) -> vec3:
+        """World position of the point with barycentric weights `bary` on triangle t,
+        now or (prev=True) at the start of the substep."""
+        b = self.model.tri_body[t]
+        idx = self.model.tri_indices[t]
+        p = vec3(0.0)
+        if self.model.body_kind[b] == SOFT:
+            for k in ti.static(range(3)):
+                if ti.static(prev):
+                    p += bary[k] * self.state.vertex_x_prev[idx[k]]
+                else:
+                    p += bary[k] * self.state.vertex_x[idx[k]]
+        else:
+            r = bary[0] * self.model.vertex_local[idx[0]] + bary[1] * self.model.vertex_local[idx[1]] + bary[2] * self.model.vertex_local[idx[2]]
+            if ti.static(prev):
+                p = self.state.body_x_prev[b] + quat_rotate(self.state.body_q_prev[b], r)
+            else:
+                p = self.state.body_x[b] + quat_rotate(self.state.body_q[b], r)
+        return p
+
+    @ti.func
+    def anchor_velocity(self, t: ti.i32, bary: vec3, p: vec3) -> vec3:
+        """Velocity of the anchored point p of triangle t (m/s)."""
+        b = self.model.tri_body[t]
+        idx = self.model.tri_indices[t]
+        v = vec3(0.0)
+        kind = self.model.body_kind[b]
+        if kind == SOFT:
+            if ti.static(self.model.has_soft):
+                for k in ti.static(range(3)):
+                    v += bary[k] * self.state.vertex_v[idx[k]]
+        elif kind == RIGID:
+            v = self.state.body_v[b] + self.state.body_w[b].cross(p - self.state.body_x[b])
+        return v
+
+    @ti.func
+    def anchor_inv_mass(self, t: ti.i32, bary: vec3, p: vec3, n: vec3) -> float:
+        """Generalised inverse mass of triangle t's anchored point p along unit n:
+        Σ b_k² w_k for a soft triangle, 1/m + (r×n)ᵀI_w⁻¹(r×n) for a rigid body, 0 if static."""
+        b = self.model.tri_body[t]
+        idx = self.model.tri_indices[t]
+        w = 0.0
+        kind = self.model.body_kind[b]
+        if kind == SOFT:
+            for k in ti.static(range(3)):
+                w += bary[k] * bary[k] * self.model.vertex_inv_mass[idx[k]]
+        elif kind == RIGID:
+            w = generalized_inv_mass(self.model.body_inv_mass[b], self.state.body_q[b],
+                                     self.model.body_inv_inertia[b], p - self.state.body_x[b], n)
+        return w
+
+    @ti.func
+    def anchor_move(self, t: ti.i32, bary: vec3, p: vec3, impulse: vec3):
+        """Apply a positional impulse (kg·m) at triangle t's anchored point p."""
+        b = self.model.tri_body[t]
+        idx = self.model.tri_indices[t]
+        kind = self.model.body_kind[b]
+        if kind == SOFT:
+            for k in ti.static(range(3)):
+                self.state.vertex_x[idx[k]] += self.model.vertex_inv_mass[idx[k]] * bary[k] * impulse
+        elif kind == RIGID:
+            self.state.body_x[b], self.state.body_q[b] = apply_positional_impulse(
+                self.state.body_x[b], self.state.body_q[b], self.model.body_inv_mass[b],
+                self.model.body_inv_inertia[b], p - self.state.body_x[b], impulse)
+
+    @ti.func
+    def anchor_kick(self, t: ti.i32, bary: vec3, p: vec3, impulse: vec3):
+        """Apply a velocity impulse (kg·m/s) at triangle t's anchored point p."""
+        b = self.model.tri_body[t]
+        idx = self.model.tri_indices[t]
+        kind = self.model.body_kind[b]
+        if kind == SOFT:
+            if ti.static(self.model.has_soft):
+                for k in ti.static(range(3)):
+                    self.state.vertex_v[idx[k]] += self.model.vertex_inv_mass[idx[k]] * bary[k] * impulse
+        elif kind == RIGID:
+            self.state.body_v[b], self.state.body_w[b] = apply_velocity_impulse(
+                self.state.body_v[b], self.state.body_w[b], self.state.body_q[b], self.model.body_inv_mass[b],
+                self.model.body_inv_inertia[b], p - self.state.body_x[b], impulse)
+
+    # ---------------------------------------------------------------- predict
+    @ti.func
+    def predict_body(self, b: ti.i32, h: float, gravity: vec3, kick: float):
+        """Explicit prediction of a rigid body's pose (Müller 2020, Alg. 2, lines 4-8);
+        kick scales the velocity update (1, or 1/2 on a run's first substep)."""
+        if self.model.body_kind[b] == RIGID:
+            self.state.body_v[b] += kick * h * (gravity + self.model.body_force[b] * self.model.body_inv_mass[b])
+            self.state.body_x_prev[b] = self.state.body_x[b]
+            self.state.body_x[b] += h * self.state.body_v[b]
+            q = self.state.body_q[b]
+            self.state.body_w[b] = gyroscopic_step(q, self.model.body_inertia[b], self.model.body_inv_inertia[b],
+                                                   self.state.body_w[b], h)
+            self.state.body_q_prev[b] = q
+            self.state.body_q[b] = integrate_rotation(q, self.state.body_w[b], h)
+
+    @ti.func
+    def predict_particle(self, i: ti.i32, h: float, gravity: vec3, kick: float):
+        """Explicit prediction of a soft particle; the body's force is shared equally."""
+        w = self.model.vertex_inv_mass[i]
+        if w > 0.0:
+            b = self.model.vertex_body[i]
+            n = self.model.body_vertex_range[b][1] - self.model.body_vertex_range[b][0]
+            self.state.vertex_v[i] += kick * h * (gravity + self.model.body_force[b] * (w / n))
+            self.state.vertex_x_prev[i] = self.state.vertex_x[i]
+            self.state.vertex_x[i] += h * self.state.vertex_v[i]
+
+    @ti.func
+    def place_vertex(self, i: ti.i32):
+        """World position of a rigid body's vertex from the body's pose."""
+        b = self.model.vertex_body[i]
+        if self.model.body_kind[b] == RIGID:
+            self.state.vertex_x[i] = self.state.body_x[b] + quat_rotate(self.state.body_q[b], self.model.vertex_local[i])
+
+    # --------------------------------------------------------------- contacts
+    @ti.func
+    def triangle_box(self, t: ti.i32):
+        """Box of triangle t padded like the grid's (see broadphase.BOX_SLACK)."""
+        idx = self.model.tri_indices[t]
+        p0, p1, p2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
+        lo = ti.min(p0, p1, p2)
+        hi = ti.max(p0, p1, p2)
+        pad = ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+        self.tri_lo[t] = lo - pad
+        self.tri_hi[t] = hi + pad
+
+    @ti.func
+    def write_contact(self, k: ti.i32, t_moved: ti.i32, t_other: ti.i32, depth: float, normal: vec3,
+                      point: vec3, c_tri: ti.template(), c_bary_moved: ti.template(),
+                      c_bary_other: ti.template(), c_normal: ti.template(), c_depth: ti.template(),
+                      c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()):
+        """Row k: the moved triangle's deepest point and the point C·N further on, on the
+        other triangle, as barycentric anchors (Eq. 6 with −∇C = N)."""
+        im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
+        bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
+        target = point + depth * normal
+        bary_o = barycentric(target, self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]])
+        c_tri[k] = ivec2(t_moved, t_other)
+        c_bary_moved[k] = bary_m
+        c_bary_other[k] = bary_o
+        c_normal[k] = normal
+        c_depth[k] = depth
+        c_lambda_n[k] = 0.0
+        c_lambda_t[k] = 0.0
+        c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, point)
+                    - self.anchor_velocity(t_other, bary_o, target)).dot(normal)
+
+    @ti.func
+    def candidate_pairs(self, c_tri: ti.template()) -> ti.i32:
+        """Serial all-pairs broad phase: triangle pairs of different bodies (not both static)
+        whose padded boxes overlap, written to c_tri; returns their number (more than the
+        capacity on overflow)."""
+        n_b = ti.static(self.model.n_bodies)
+        for t in range(ti.static(self.model.n_tris)):
+            self.triangle_box(t)
+        for b in range(n_b):
+            lo = vec3(ti.math.inf)
+            hi = vec3(-ti.math.inf)
+            for t in range(self.model.body_tri_range[b][0], self.model.body_tri_range[b][1]):
+                lo = ti.min(lo, self.tri_lo[t])
+                hi = ti.max(hi, self.tri_hi[t])
+            self.body_lo[b] = lo
+            self.body_hi[b] = hi
+        n = 0
+        capacity = c_tri.shape[0]
+        for ba in range(n_b):
+            for bb in range(ba + 1, n_b):
+                if ((self.model.body_kind[ba] != STATIC or self.model.body_kind[bb] != STATIC)
+                        and boxes_overlap(self.body_lo[ba], self.body_hi[ba], self.body_lo[bb], self.body_hi[bb])):
+                    for ta in range(self.model.body_tri_range[ba][0], self.model.body_tri_range[ba][1]):
+                        if boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.body_lo[bb], self.body_hi[bb]):
+                            for tb in range(self.model.body_tri_range[bb][0], self.model.body_tri_range[bb][1]):
+                                if boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.tri_lo[tb], self.tri_hi[tb]):
+                                    if n < capacity:
+                                        c_tri[n] = ivec2(ta, tb)
+                                    n += 1
+        return n
+
+    @ti.func
+    def collide_candidates(self, n_candidates: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
+                           c_bary_other: ti.template(), c_normal: ti.template(), c_depth: ti.template(),
+                           c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """The unified narrow phase on the candidate pairs in c_tri, compacted in place into
+        contact rows (serial: row n <= candidate k is written after k is read); returns the count."""
+        n = 0
+        for k in range(n_candidates):
+            ab = c_tri[k]
+            ia, ib = self.model.tri_indices[ab[0]], self.model.tri_indices[ab[1]]
+            hit, depth, normal, side, point = collide_triangle_pair(
+                self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]],
+                self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]])
+            if side >= 0:
+                t_m, t_o = ab[0], ab[1]
+                if side == 1:
+                    t_m, t_o = ab[1], ab[0]
+                if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
+                    self.write_contact(n, t_m, t_o, depth, normal, point, c_tri, c_bary_moved, c_bary_other,
+                                       c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
+                    n += 1
+        return n
+
+    @ti.func
+    def is_duplicate(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, point: vec3,
+                     c_tri: ti.template(), c_bary_moved: ti.template(), c_normal: ti.template()) -> bool:
+        """Whether rows [0, n) already hold this constraint: same two bodies, same normal and
+        the same moved point (within the narrow phase's tolerance). A vertex or edge shared by
+        several triangles is reported by each triangle pair; projecting every copy would weigh
+        that point several times and make the Gauss-Seidel result depend on the mesh's
+        triangulation (a box dropped flat would spin). Checked only for n <= DEDUP_MAX_ROWS."""
+        body_m, body_o = self.model.tri_body[t_moved], self.model.tri_body[t_other]
+        idx = self.model.tri_indices[t_moved]
+        size = ti.sqrt(longest_edge_sq(self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]],
+                                       self.state.vertex_x[idx[2]]))
+        tol = ti.static(runtime.tolerance())
+        found = False
+        if n <= DEDUP_MAX_ROWS:
+            for j in range(n):
+                tri = c_tri[j]
+                if (not found and self.model.tri_body[tri[0]] == body_m and self.model.tri_body[tri[1]] == body_o
+                        and c_normal[j].dot(normal) >= 1.0 - tol):
+                    p = self.anchor_world(tri[0], c_bary_moved[j], False)
+                    found = (p - point).norm() <= tol * size
+        return found
+
+    @ti.func
+    def solve_contact_normal(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
+                             c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template()):
+        """Project contact k: C = N·(p_other − p_moved) ≥ 0 with Δλ = C/(w_moved + w_other),
+        w the generalised inverse masses along N (Müller 2020, Eq. 2-9 with α = 0)."""
+        tri = c_tri[k]
+        bm, bo = c_bary_moved[k], c_bary_other[k]
+        n = c_normal[k]
+        p_m = self.anchor_world(tri[0], bm, False)
+        p_o = self.anchor_world(tri[1], bo, False)
+        c = n.dot(p_o - p_m)
+        if c > 0.0:
+            w = self.anchor_inv_mass(tri[0], bm, p_m, n) + self.anchor_inv_mass(tri[1], bo, p_o, n)
+            if w > 0.0:
+                dl = c / w
+                self.anchor_move(tri[0], bm, p_m, dl * n)
+                self.anchor_move(tri[1], bo, p_o, -dl * n)
+                c_lambda_n[k] += dl
+
+    @ti.func
+    def solve_contact_friction(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
+                               c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template(),
+                               c_lambda_t: ti.template()):
+        """Static friction of an active contact: cancel the anchors' relative tangential
+        displacement over the substep while the accumulated λ_t ≤ μ·λ_n (Müller 2020, Eq. 26-27;
+        μ is the mean of the two bodies' friction coefficients)."""
+        if c_lambda_n[k] > 0.0:
+            tri = c_tri[k]
+            bm, bo = c_bary_moved[k], c_bary_other[k]
+            n = c_normal[k]
+            p_m = self.anchor_world(tri[0], bm, False)
+            p_o = self.anchor_world(tri[1], bo, False)
+            slip = (p_m - self.anchor_world(tri[0], bm, True)) - (p_o - self.anchor_world(tri[1], bo, True))
+            slip -= slip.dot(n) * n
+            length = slip.norm()
+            if length > 0.0:
+                t = slip / length
+                w = self.anchor_inv_mass(tri[0], bm, p_m, t) + self.anchor_inv_mass(tri[1], bo, p_o, t)
+                mu = 0.5 * (self.model.body_friction[self.model.tri_body[tri[0]]]
+                            + self.model.body_friction[self.model.tri_body[tri[1]]])
+                if w > 0.0:
+                    dl = length / w
+                    if c_lambda_t[k] + dl <= mu * c_lambda_n[k]:
+                        self.anchor_move(tri[0], bm, p_m, -dl * t)
+                        self.anchor_move(tri[1], bo, p_o, dl * t)
+                        c_lambda_t[k] += dl
+
+    @ti.func
+    def solve_contact_velocity(self, k: ti.i32, h: float, g_norm: float, c_tri: ti.template(),
+                               c_bary_moved: ti.template(), c_bary_other: ti.template(),
+                               c_normal: ti.template(), c_lambda_n: ti.template(), c_vn0: ti.template(),
+                               c_impulse_t: ti.template()):
+        """One velocity-pass sweep over an active contact (Müller 2020 §3.6, iterated as
+        sequential impulses): the normal relative velocity is driven to max(−e·v_n⁰, 0)
+        (e = 0 below 2|g|h, so resting stays resting), and the accumulated dynamic-friction
+        impulse cancels the tangential velocity within Coulomb's bound |J_t| ≤ μ·λ_n/h."""
+        if c_lambda_n[k] > 0.0:
+            tri = c_tri[k]
+            bm, bo = c_bary_moved[k], c_bary_other[k]
+            n = c_normal[k]
+            p_m = self.anchor_world(tri[0], bm, False)
+            p_o = self.anchor_world(tri[1], bo, False)
+            body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+            e = 0.5 * (self.model.body_restitution[body_m] + self.model.body_restitution[body_o])
+            vn0 = c_vn0[k]
+            if ti.abs(vn0) <= 2.0 * g_norm * h:
+                e = 0.0
+            v = self.anchor_velocity(tri[0], bm, p_m) - self.anchor_velocity(tri[1], bo, p_o)
+            w_n = self.anchor_inv_mass(tri[0], bm, p_m, n) + self.anchor_inv_mass(tri[1], bo, p_o, n)
+            if w_n > 0.0:
+                impulse = ((ti.max(-e * vn0, 0.0) - v.dot(n)) / w_n) * n
+                self.anchor_kick(tri[0], bm, p_m, impulse)
+                self.anchor_kick(tri[1], bo, p_o, -impulse)
+            v = self.anchor_velocity(tri[0], bm, p_m) - self.anchor_velocity(tri[1], bo, p_o)
+            vt = v - v.dot(n) * n
+            vt_len = vt.norm()
+            if vt_len > 0.0:
+                t = vt / vt_len
+                w_t = self.anchor_inv_mass(tri[0], bm, p_m, t) + self.anchor_inv_mass(tri[1], bo, p_o, t)
+                if w_t > 0.0:
+                    mu = 0.5 * (self.model.body_friction[body_m] + self.model.body_friction[body_o])
+                    bound = mu * c_lambda_n[k] / h
+                    old = c_impulse_t[k]
+                    new = old - (vt_len / w_t) * t
+                    new_len = new.norm()
+                    if new_len > bound:
+                        new *= bound / new_len
+                    c_impulse_t[k] = new
+                    self.anchor_kick(tri[0], bm, p_m, new - old)
+                    self.anchor_kick(tri[1], bo, p_o, old - new)
+
+    @ti.func
+    def solve_velocities(self, n_contacts: ti.i32, iterations: ti.i32, h: float, g_norm: float,
+                         c_tri: ti.template(), c_bary_moved: ti.template(), c_bary_other: ti.template(),
+                         c_normal: ti.template(), c_lambda_n: ti.template(), c_vn0: ti.template(),
+                         c_impulse_t: ti.template()):
+        """`iterations` alternating sweeps of the velocity pass (serial)."""
+        for k in range(n_contacts):
+            c_impulse_t[k] = vec3(0.0)
+        for it in range(iterations):
+            for j in range(n_contacts):
+                k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+                self.solve_contact_velocity(k, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                            c_lambda_n, c_vn0, c_impulse_t)
+
+    # ------------------------------------------------------------- soft bodies
+    @ti.func
+    def solve_edge(self, e: ti.i32, h: float):
+        """XPBD edge-length constraint C = |x_i − x_j| − L with the body's compliance."""
+        ij = self.model.edge_indices[e]
+        c, grad = edge_length(self.state.vertex_x[ij[0]], self.state.vertex_x[ij[1]], self.model.edge_rest[e])
+        wi, wj = self.model.vertex_inv_mass[ij[0]], self.model.vertex_inv_mass[ij[1]]
+        alpha = self.model.body_compliance[self.model.vertex_body[ij[0]]] / (h * h)
+        dl = xpbd_delta_lambda(c, wi + wj, self.edge_lambda[e], alpha)
+        self.edge_lambda[e] += dl
+        self.state.vertex_x[ij[0]] += wi * dl * grad
+        self.state.vertex_x[ij[1]] -= wj * dl * grad
+
+    @ti.func
+    def solve_volume(self, b: ti.i32):
+        """Volume constraint of a closed soft body, C = V − V₀ with V = Σ (x0×x1)·x2 / 6 over
+        its triangles and ∇_i V = Σ over i's triangles of (x_j × x_k)/6 (hard: α = 0)."""
+        if self.model.body_kind[b] == SOFT:
+            v_lo, v_hi = self.model.body_vertex_range[b][0], self.model.body_vertex_range[b][1]
+            for i in range(v_lo, v_hi):
+                self.vertex_grad[i] = vec3(0.0)
+            vol6 = 0.0
+            for t in range(self.model.body_tri_range[b][0], self.model.body_tri_range[b][1]):
+                idx = self.model.tri_indices[t]
+                x0, x1, x2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
+                vol6 += tet_volume6(x0, x1, x2)
+                self.vertex_grad[idx[0]] += x1.cross(x2) / 6.0
+                self.vertex_grad[idx[1]] += x2.cross(x0) / 6.0
+                self.vertex_grad[idx[2]] += x0.cross(x1) / 6.0
+            wsum = 0.0
+            for i in range(v_lo, v_hi):
+                wsum += self.model.vertex_inv_mass[i] * self.vertex_grad[i].norm_sqr()
+            dl = xpbd_delta_lambda(vol6 / 6.0 - self.model.body_rest_volume[b], wsum, 0.0, 0.0)
+            for i in range(v_lo, v_hi):
+                self.state.vertex_x[i] += self.model.vertex_inv_mass[i] * dl * self.vertex_grad[i]
+
+    # ------------------------------------------------------------- velocities
+    @ti.func
+    def update_body_velocity(self, b: ti.i32, h: float):
+        """v = (x − x_prev)/h, ω = 2·vec(q ⊗ q_prev⁻¹)/h (Müller 2020, Alg. 2, lines 12-15)."""
+        if self.model.body_kind[b] == RIGID:
+            self.state.body_v[b] = (self.state.body_x[b] - self.state.body_x_prev[b]) / h
+            self.state.body_w[b] = angular_velocity(self.state.body_q[b], self.state.body_q_prev[b], h)
+
+    @ti.func
+    def update_particle_velocity(self, i: ti.i32, h: float):
+        if self.model.vertex_inv_mass[i] > 0.0:
+            self.state.vertex_v[i] = (self.state.vertex_x[i] - self.state.vertex_x_prev[i]) / h
+
+    @ti.func
+    def state_is_sane(self, bound: float) -> ti.i32:
+        """-1 - (index of the first body) whose state is NaN or beyond `bound`, else 0."""
+        bad = 0
+        for b in range(ti.static(self.model.n_bodies)):
+            ok = ti.abs(self.state.body_x[b]).max() <= bound and ti.abs(self.state.body_v[b]).max() <= bound
+            if bad == 0 and not ok:
+                bad = -1 - b
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                ok = ti.abs(self.state.vertex_x[i]).max() <= bound and ti.abs(self.state.vertex_v[i]).max() <= bound
+                if bad == 0 and not ok:
+                    bad = -1 - self.model.vertex_body[i]
+        return bad
+
+    # ---------------------------------------------------------------- kernels
+    @ti.kernel
+    def _save_state(self):
+        """Copy the state to the frame's snapshot."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.saved_body[0][b] = self.state.body_x[b]
+            self.saved_body[1][b] = self.state.body_q[b]
+            self.saved_body[2][b] = self.state.body_v[b]
+            self.saved_body[3][b] = self.state.body_w[b]
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.saved_vertex[0][i] = self.state.vertex_x[i]
+                self.saved_vertex[1][i] = self.state.vertex_v[i]
+
+    @ti.kernel
+    def _restore_state(self):
+        """Return to the frame's snapshot."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.state.body_x[b] = self.saved_body[0][b]
+            self.state.body_q[b] = self.saved_body[1][b]
+            self.state.body_v[b] = self.saved_body[2][b]
+            self.state.body_w[b] = self.saved_body[3][b]
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.state.vertex_x[i] = self.saved_vertex[0][i]
+                self.state.vertex_v[i] = self.saved_vertex[1][i]
+
+    @ti.kernel
+    def _place_vertices(self):
+        """vertex_x of rigid bodies from their poses."""
+        for i in range(ti.static(self.model.n_vertices)):
+            self.place_vertex(i)
+
+    @ti.func
+    def project(self, n_contacts: ti.i32, iterations: ti.i32, h: float, c_tri: ti.template(),
+                c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
+                c_lambda_n: ti.template(), c_lambda_t: ti.template()):
+        """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial loop)."""
+        if ti.static(self.model.has_soft):
+            for e in range(ti.static(self.model.n_edges)):
+                self.edge_lambda[e] = 0.0
+        for it in range(iterations):
+            if ti.static(self.model.has_soft):
+                for e in range(ti.static(self.model.n_edges)):
+                    self.solve_edge(e, h)
+                for b in range(ti.static(self.model.n_bodies)):
+                    self.solve_volume(b)
+            # Normals first, then friction on the slip they leave; the sweeps alternate
+            # direction so that no contact is always last.
+            for j in range(n_contacts):
+                k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+                self.solve_contact_normal(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n)
+            for j in range(n_contacts):
+                k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+                self.solve_contact_friction(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
+                                            c_lambda_t)
+
+    @ti.kernel
+    def _frame_all_pairs(self, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3, first_kick: float,
+                         bound: float, c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
+                         c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                         c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                         c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_depth: ti.types.ndarray(ndim=1),
+                         c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
+                         c_vn0: ti.types.ndarray(ndim=1),
+                         c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(2, ti.i32):
+        """One frame of substeps, serially in one launch. Returns (most candidate pairs in a
+        substep, state check: 0 or -1 - first bad body); the contact buffer holds the
+        candidates first, so it overflowed if the first exceeds its capacity."""
+        most = 0
+        status = 0
+        g_norm = gravity.norm()
+        for _ in range(1):
+            for sub in range(substeps):
+                kick = ti.select(sub == 0, first_kick, 1.0)
+                for b in range(ti.static(self.model.n_bodies)):
+                    self.predict_body(b, h, gravity, kick)
+                if ti.static(self.model.has_soft):
+                    for i in range(ti.static(self.model.n_vertices)):
+                        self.predict_particle(i, h, gravity, kick)
+                for i in range(ti.static(self.model.n_vertices)):
+                    self.place_vertex(i)
+                n = self.candidate_pairs(c_tri)
+                most = ti.max(most, n)
+                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), c_tri, c_bary_moved, c_bary_other,
+                                            c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
+                self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n, c_lambda_t)
+                for b in range(ti.static(self.model.n_bodies)):
+                    self.update_body_velocity(b, h)
+                if ti.static(self.model.has_soft):
+                    for i in range(ti.static(self.model.n_vertices)):
+                        self.update_particle_velocity(i, h)
+                self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                      c_lambda_n, c_vn0, c_impulse_t)
+            for i in range(ti.static(self.model.n_vertices)):
+                self.place_vertex(i)
+            status = self.state_is_sane(bound)
+        return ti.Vector([most, status])
+
+    @ti.kernel
+    def _begin_substep(self, h: float, gravity: vec3, kick: float,
+                       vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
+        """Predict every body and particle in parallel and place the vertices for the grid."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.predict_body(b, h, gravity, kick)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.predict_particle(i, h, gravity, kick)
+        for i in range(ti.static(self.model.n_vertices)):
+            self.place_vertex(i)
+            vertex_nd[i] = self.state.vertex_x[i]
+
+    @ti.kernel
+    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, bound: float, n_pairs: ti.i32,
+                     p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
+                     p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
+                     p_point: ti.types.ndarray(dtype=vec3, ndim=1),
+                     c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
+                     c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                     c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                     c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_depth: ti.types.ndarray(ndim=1),
+                     c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
+                     c_vn0: ti.types.ndarray(ndim=1),
+                     c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(2, ti.i32):
+        """The grid's contacts into constraints, projection and velocities of one substep.
+        Returns (contacts, state check)."""
+        n = 0
+        for _ in range(1):
+            for k in range(n_pairs):
+                side = ti.cast(p_side[k], ti.i32)
+                if side >= 0:
+                    ab = p_pair[k]
+                    t_m, t_o = ab[0], ab[1]
+                    if side == 1:
+                        t_m, t_o = ab[1], ab[0]
+                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], c_tri, c_bary_moved,
+                                       c_bary_other, c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
+                    n += 1
+            self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n, c_lambda_t)
+        for b in range(ti.static(self.model.n_bodies)):
+            self.update_body_velocity(b, h)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.update_particle_velocity(i, h)
+        status = 0
+        for _ in range(1):
+            self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                  c_lambda_n, c_vn0, c_impulse_t)
+            for i in range(ti.static(self.model.n_vertices)):
+                self.place_vertex(i)
+            status = self.state_is_sane(bound)
+        return ti.Vector([n, status])
+
+    # ----------------------------------------------------------------- python
+    def step_frame(self, frame_dt: float, substeps: int, iterations: int) -> int:
+        """Advance the state by frame_dt seconds in `substeps` substeps of `iterations`
+        Gauss-Seidel sweeps. Returns the contact count of the busiest substep. Raises
+        SimulationError (naming the body) on NaN or a body beyond the bound."""
+        if substeps < 1 or iterations < 1 or not frame_dt > 0:
+            raise ValueError("frame_dt, substeps and iterations must be positive")
+        h = frame_dt / substeps
+        first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
+        gravity = ti.Vector(list(self.gravity))
+        if self.use_grid:
+            most, status = self._step_grid(h, substeps, iterations, first_kick)
+        else:
+            self._save_state()
+            while True:
+                most, status = (int(v) for v in self._frame_all_pairs(
+                    substeps, iterations, h, gravity, first_kick, self.bound, *self.contacts.arrays()))
+                if most <= self.contacts.capacity:
+                    break
+                self._restore_state()
+                self.contacts.grow(most)
+                self.contact_growths += 1
+        self.state.substeps_done += substeps
+        self.state.time += frame_dt
+        self.last_contact_count = most
+        if status != 0:
+            body = self.model.bodies[-1 - status].name
+            raise SimulationError(f"body {body!r} has a NaN or exploded (|x| or |v| above {self.bound:g}) "
+                                  f"by t = {self.state.time:.4g} s")
+        return most
+
+    def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
+        gravity = ti.Vector(list(self.gravity))
+        g_norm = float(np.linalg.norm(self.gravity))
+        most = status = 0
+        for sub in range(substeps):
+            self._begin_substep(h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
+            self.pipeline.run(self.vertex_nd)
+            pc = self.pipeline.contacts
+            if pc.count > self.contacts.capacity:
+                self.contacts.grow(pc.count)
+                self.contact_growths += 1
+            n, status = (int(v) for v in self._end_substep(
+                iterations, h, g_norm, self.bound, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
+                *self.contacts.arrays()))
+            most = max(most, n)
+            if status != 0:
+                break
+        return most, status
