@@ -16,6 +16,10 @@ _LAZY = {
     "PairContacts": "narrowphase",
     "find_contacts": "collision",
     "MeshContacts": "collision",
+    "load_scene": "scene",
+    "Scene": "scene",
+    "SceneError": "config",
+    "SimulationError": "solver",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -42,7 +42,67 @@ def build_parser() -> argparse.ArgumentParser:
     collide.add_argument("b", type=_triangle, help="triangle B, same form")
     collide.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
     collide.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
+    run = sub.add_parser(
+        "run",
+        help="simulate a scene file and write final meshes and metrics",
+        description="Simulate SCENE (a TOML scene file, DESIGN.md §4) and write final/<body>.obj, "
+                    "metrics.json and metrics.csv into the output folder. Exit status 0 on success, "
+                    "1 if the simulation failed (NaN, explosion), 2 for bad usage or input.",
+    )
+    run.add_argument("scene", help="path to a scene file (.toml)")
+    run.add_argument("--frames", type=_positive_int, help="frames to simulate (default: the scene's)")
+    run.add_argument("--substeps", type=_positive_int, help="substeps per frame (default: the scene's)")
+    run.add_argument("--iterations", type=_positive_int, help="solver sweeps per substep (default: the scene's)")
+    run.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
+    run.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
+    run.add_argument("--out", help="output folder (default outputs/<scene>/)")
+    run.add_argument("--no-frames", action="store_true", help="write no frame images (none are rendered yet)")
+    run.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _cmd_run(args) -> int:
+    from pathlib import Path
+
+    from . import runtime
+    from .config import SceneError, read_scene_file
+    from .run import run_scene
+    from .scene import Scene
+
+    try:
+        config = read_scene_file(args.scene)
+        if args.substeps:
+            config.sim.substeps = args.substeps
+        if args.iterations:
+            config.sim.iterations = args.iterations
+        runtime.init(arch=args.arch, precision=args.precision)
+        print(f"taichi-dcd: building {config.name} ({len(config.bodies)} bodies)", file=sys.stderr)
+        scene = Scene(config)
+    except (SceneError, RuntimeError) as exc:
+        print(f"taichi-dcd: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("outputs") / config.name
+    try:
+        metrics = run_scene(scene, out, frames=args.frames, progress=None if args.quiet else sys.stderr)
+    except KeyboardInterrupt:
+        print(f"taichi-dcd: interrupted; partial results in {out}", file=sys.stderr)
+        return 1
+    if not metrics["complete"]:
+        print(f"taichi-dcd: error: {metrics['error']} (last good state in {out})", file=sys.stderr)
+        return 1
+    print(f"{config.name}: {metrics['frames']} frames, {metrics['sim_time']:.3f} s simulated in "
+          f"{metrics['wall_time_s']:.2f} s wall; results in {out}")
+    return 0
 
 
 def _cmd_collide(args) -> int:
@@ -77,5 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "collide":
         return _cmd_collide(args)
+    if args.command == "run":
+        return _cmd_run(args)
     parser.error(f"unknown command {args.command!r}")
     return 2

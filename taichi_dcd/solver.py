@@ -354,8 +354,8 @@ class XPBDSolver:
                                c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template(),
                                c_lambda_t: ti.template()):
         """Static friction of an active contact: cancel the anchors' relative tangential
-        displacement over the substep while the accumulated λ_t ≤ μ·λ_n (Müller 2020, Eq. 26-27;
-        μ is the mean of the two bodies' friction coefficients)."""
+        displacement over the substep, as far as the accumulated λ_t stays ≤ μ·λ_n (Müller
+        2020, Eq. 26-27, clamped; μ is the mean of the two bodies' friction coefficients)."""
         if c_lambda_n[k] > 0.0:
             tri = c_tri[k]
             bm, bo = c_bary_moved[k], c_bary_other[k]
@@ -371,8 +371,11 @@ class XPBDSolver:
                 mu = 0.5 * (self.model.body_friction[self.model.tri_body[tri[0]]]
                             + self.model.body_friction[self.model.tri_body[tri[1]]])
                 if w > 0.0:
-                    dl = length / w
-                    if c_lambda_t[k] + dl <= mu * c_lambda_n[k]:
+                    # Clamped to the cone rather than all-or-nothing: several contacts of one
+                    # face share the load unevenly, and dropping a contact's whole correction
+                    # when its own share is exceeded makes a box stick-slip down a gentle slope.
+                    dl = ti.min(length / w, mu * c_lambda_n[k] - c_lambda_t[k])
+                    if dl > 0.0:
                         self.anchor_move(tri[0], bm, p_m, -dl * t)
                         self.anchor_move(tri[1], bo, p_o, dl * t)
                         c_lambda_t[k] += dl
@@ -380,12 +383,13 @@ class XPBDSolver:
     @ti.func
     def solve_contact_velocity(self, k: ti.i32, h: float, g_norm: float, c_tri: ti.template(),
                                c_bary_moved: ti.template(), c_bary_other: ti.template(),
-                               c_normal: ti.template(), c_lambda_n: ti.template(), c_vn0: ti.template(),
-                               c_impulse_t: ti.template()):
+                               c_normal: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                               c_vn0: ti.template(), c_impulse_t: ti.template()):
         """One velocity-pass sweep over an active contact (Müller 2020 §3.6, iterated as
         sequential impulses): the normal relative velocity is driven to max(−e·v_n⁰, 0)
         (e = 0 below 2|g|h, so resting stays resting), and the accumulated dynamic-friction
-        impulse cancels the tangential velocity within Coulomb's bound |J_t| ≤ μ·λ_n/h."""
+        impulse cancels the tangential velocity within what static friction left of Coulomb's
+        bound: |J_t| ≤ (μ·λ_n − λ_t)/h."""
         if c_lambda_n[k] > 0.0:
             tri = c_tri[k]
             bm, bo = c_bary_moved[k], c_bary_other[k]
@@ -411,7 +415,8 @@ class XPBDSolver:
                 w_t = self.anchor_inv_mass(tri[0], bm, p_m, t) + self.anchor_inv_mass(tri[1], bo, p_o, t)
                 if w_t > 0.0:
                     mu = 0.5 * (self.model.body_friction[body_m] + self.model.body_friction[body_o])
-                    bound = mu * c_lambda_n[k] / h
+                    # The position pass already spent λ_t/h of the Coulomb bound μ·λ_n/h.
+                    bound = ti.max(mu * c_lambda_n[k] - c_lambda_t[k], 0.0) / h
                     old = c_impulse_t[k]
                     new = old - (vt_len / w_t) * t
                     new_len = new.norm()
@@ -424,8 +429,8 @@ class XPBDSolver:
     @ti.func
     def solve_velocities(self, n_contacts: ti.i32, iterations: ti.i32, h: float, g_norm: float,
                          c_tri: ti.template(), c_bary_moved: ti.template(), c_bary_other: ti.template(),
-                         c_normal: ti.template(), c_lambda_n: ti.template(), c_vn0: ti.template(),
-                         c_impulse_t: ti.template()):
+                         c_normal: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                         c_vn0: ti.template(), c_impulse_t: ti.template()):
         """`iterations` alternating sweeps of the velocity pass (serial)."""
         for k in range(n_contacts):
             c_impulse_t[k] = vec3(0.0)
@@ -433,7 +438,7 @@ class XPBDSolver:
             for j in range(n_contacts):
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
                 self.solve_contact_velocity(k, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
-                                            c_lambda_n, c_vn0, c_impulse_t)
+                                            c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
 
     # ------------------------------------------------------------- soft bodies
     @ti.func
@@ -564,11 +569,13 @@ class XPBDSolver:
                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_depth: ti.types.ndarray(ndim=1),
                          c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
                          c_vn0: ti.types.ndarray(ndim=1),
-                         c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(2, ti.i32):
+                         c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(3, ti.i32):
         """One frame of substeps, serially in one launch. Returns (most candidate pairs in a
-        substep, state check: 0 or -1 - first bad body); the contact buffer holds the
-        candidates first, so it overflowed if the first exceeds its capacity."""
+        substep, contacts of the last substep, state check: 0 or -1 - first bad body); the
+        contact buffer holds the candidates first, so it overflowed if the first exceeds its
+        capacity."""
         most = 0
+        n = 0
         status = 0
         g_norm = gravity.norm()
         for _ in range(1):
@@ -592,11 +599,11 @@ class XPBDSolver:
                     for i in range(ti.static(self.model.n_vertices)):
                         self.update_particle_velocity(i, h)
                 self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
-                                      c_lambda_n, c_vn0, c_impulse_t)
+                                      c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
             for i in range(ti.static(self.model.n_vertices)):
                 self.place_vertex(i)
             status = self.state_is_sane(bound)
-        return ti.Vector([most, status])
+        return ti.Vector([most, n, status])
 
     @ti.kernel
     def _begin_substep(self, h: float, gravity: vec3, kick: float,
@@ -646,7 +653,7 @@ class XPBDSolver:
         status = 0
         for _ in range(1):
             self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
-                                  c_lambda_n, c_vn0, c_impulse_t)
+                                  c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
             for i in range(ti.static(self.model.n_vertices)):
                 self.place_vertex(i)
             status = self.state_is_sane(bound)
@@ -655,7 +662,7 @@ class XPBDSolver:
     # ----------------------------------------------------------------- python
     def step_frame(self, frame_dt: float, substeps: int, iterations: int) -> int:
         """Advance the state by frame_dt seconds in `substeps` substeps of `iterations`
-        Gauss-Seidel sweeps. Returns the contact count of the busiest substep. Raises
+        Gauss-Seidel sweeps. Returns the contact count of the last substep. Raises
         SimulationError (naming the body) on NaN or a body beyond the bound."""
         if substeps < 1 or iterations < 1 or not frame_dt > 0:
             raise ValueError("frame_dt, substeps and iterations must be positive")
@@ -663,11 +670,11 @@ class XPBDSolver:
         first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
         gravity = ti.Vector(list(self.gravity))
         if self.use_grid:
-            most, status = self._step_grid(h, substeps, iterations, first_kick)
+            count, status = self._step_grid(h, substeps, iterations, first_kick)
         else:
             self._save_state()
             while True:
-                most, status = (int(v) for v in self._frame_all_pairs(
+                most, count, status = (int(v) for v in self._frame_all_pairs(
                     substeps, iterations, h, gravity, first_kick, self.bound, *self.contacts.arrays()))
                 if most <= self.contacts.capacity:
                     break
@@ -676,17 +683,17 @@ class XPBDSolver:
                 self.contact_growths += 1
         self.state.substeps_done += substeps
         self.state.time += frame_dt
-        self.last_contact_count = most
+        self.last_contact_count = count
         if status != 0:
             body = self.model.bodies[-1 - status].name
             raise SimulationError(f"body {body!r} has a NaN or exploded (|x| or |v| above {self.bound:g}) "
                                   f"by t = {self.state.time:.4g} s")
-        return most
+        return count
 
     def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
         gravity = ti.Vector(list(self.gravity))
         g_norm = float(np.linalg.norm(self.gravity))
-        most = status = 0
+        n = status = 0
         for sub in range(substeps):
             self._begin_substep(h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
             self.pipeline.run(self.vertex_nd)
@@ -697,7 +704,6 @@ class XPBDSolver:
             n, status = (int(v) for v in self._end_substep(
                 iterations, h, g_norm, self.bound, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                 *self.contacts.arrays()))
-            most = max(most, n)
             if status != 0:
                 break
-        return most, status
+        return n, status

@@ -1,0 +1,156 @@
+"""Scene settings as validated dataclasses, read from TOML (DESIGN.md §4).
+
+Every key has a default but `name`, `kind` and one of `mesh` / `shape` per body;
+unknown keys, wrong types and out-of-range values raise `SceneError` with a
+one-line message naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+# The recommended setting: 10 substeps of 8 Gauss-Seidel sweeps per 0.01 s frame
+# (a box resting on a block creeps ~1e-7 m per frame with 4 sweeps, ~1e-9 with 8).
+DEFAULT_SUBSTEPS = 10
+DEFAULT_ITERATIONS = 8
+
+
+class SceneError(ValueError):
+    """Bad scene file or scene settings; the message names the file and the key."""
+
+
+@dataclass
+class SimConfig:
+    frame_dt: float = 0.01
+    frames: int = 200
+    substeps: int = DEFAULT_SUBSTEPS
+    iterations: int = DEFAULT_ITERATIONS
+    gravity: tuple = (0.0, -9.8, 0.0)
+
+
+@dataclass
+class BodyConfig:
+    name: str
+    kind: str
+    mesh: str | None = None
+    shape: str | None = None
+    params: dict = field(default_factory=dict)
+    position: tuple = (0.0, 0.0, 0.0)
+    rotation: tuple = (0.0, 0.0, 0.0)
+    scale: float = 1.0
+    velocity: tuple = (0.0, 0.0, 0.0)
+    force: tuple = (0.0, 0.0, 0.0)
+    density: float = 1000.0
+    friction: float = 0.5
+    restitution: float = 0.0
+    compliance: float = 1e-7
+
+
+@dataclass
+class SceneConfig:
+    name: str
+    sim: SimConfig
+    bodies: list[BodyConfig]
+    base_dir: Path = Path(".")
+
+
+_SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "iterations": "count",
+             "gravity": "vec3"}
+_BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
+              "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
+              "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg"}
+_KINDS = ("rigid", "soft", "static")
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _check(where: str, key: str, value, rule: str):
+    """The value converted to its Python type, or SceneError naming `where`.`key`."""
+    bad = None
+    if rule == "str":
+        if not isinstance(value, str) or not value:
+            bad = "a non-empty string"
+    elif rule == "table":
+        if not isinstance(value, dict):
+            bad = "a table"
+    elif rule == "vec3":
+        if not (isinstance(value, list) and len(value) == 3 and all(_number(v) for v in value)):
+            bad = "a list of 3 finite numbers"
+        else:
+            return tuple(float(v) for v in value)
+    elif rule == "count":
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            bad = "a positive integer"
+    elif not _number(value):
+        bad = "a finite number"
+    elif rule == "positive" and not value > 0:
+        bad = "a positive number"
+    elif rule == "nonneg" and not value >= 0:
+        bad = "a number >= 0"
+    elif rule == "unit" and not 0 <= value <= 1:
+        bad = "a number in [0, 1]"
+    if bad:
+        raise SceneError(f"{where}: {key} must be {bad}, got {value!r}")
+    return float(value) if rule in ("positive", "nonneg", "unit") else value
+
+
+def scene_from_dict(data: dict, name: str, base_dir: Path = Path("."), where: str = "scene") -> SceneConfig:
+    """Validate a parsed scene (the TOML's tables) into a SceneConfig."""
+    unknown = set(data) - {"sim", "body"}
+    if unknown:
+        raise SceneError(f"{where}: unknown key {sorted(unknown)[0]!r} (expected [sim] and [[body]])")
+    sim_data = data.get("sim", {})
+    if not isinstance(sim_data, dict):
+        raise SceneError(f"{where}: [sim] must be a table")
+    sim = SimConfig()
+    for key, value in sim_data.items():
+        if key not in _SIM_KEYS:
+            raise SceneError(f"{where}: unknown key 'sim.{key}' (known: {', '.join(_SIM_KEYS)})")
+        setattr(sim, key, _check(where, f"sim.{key}", value, _SIM_KEYS[key]))
+    body_list = data.get("body", [])
+    if not isinstance(body_list, list) or not body_list:
+        raise SceneError(f"{where}: a scene needs at least one [[body]]")
+    bodies = []
+    for i, entry in enumerate(body_list):
+        label = f"body[{i}]"
+        if not isinstance(entry, dict):
+            raise SceneError(f"{where}: {label} must be a table")
+        for key in entry:
+            if key not in _BODY_KEYS:
+                raise SceneError(f"{where}: unknown key '{label}.{key}' (known: {', '.join(_BODY_KEYS)})")
+        for key in ("name", "kind"):
+            if key not in entry:
+                raise SceneError(f"{where}: {label} is missing the required key '{key}'")
+        values = {key: _check(where, f"{label}.{key}", value, _BODY_KEYS[key]) for key, value in entry.items()}
+        label = f"body {values['name']!r}"
+        if values["kind"] not in _KINDS:
+            raise SceneError(f"{where}: {label}: unknown kind {values['kind']!r} (rigid, soft or static)")
+        if ("mesh" in values) == ("shape" in values):
+            raise SceneError(f"{where}: {label} needs exactly one of 'mesh' or 'shape'")
+        if "params" in values and "shape" not in values:
+            raise SceneError(f"{where}: {label}: 'params' is only for a built-in 'shape'")
+        if any(b.name == values["name"] for b in bodies):
+            raise SceneError(f"{where}: duplicate body name {values['name']!r}")
+        bodies.append(BodyConfig(**values))
+    return SceneConfig(name=name, sim=sim, bodies=bodies, base_dir=base_dir)
+
+
+def read_scene_file(path) -> SceneConfig:
+    """Parse and validate a TOML scene file; SceneError names the file (and line for syntax)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read scene file ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: TOML syntax error: {exc}") from None
+    return scene_from_dict(data, name=path.stem, base_dir=path.parent, where=str(path))

@@ -1,0 +1,173 @@
+"""A runnable scene: settings, Model, State and solver together, stepped frame by frame.
+
+`load_scene(path)` reads a TOML scene file (DESIGN.md §4); `Scene.from_config` builds
+one from a `SceneConfig`. Positions in metres, velocities in m/s, time in seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from . import runtime
+from .builder import BodySpec, ModelBuilder
+from .config import SceneConfig, SceneError, read_scene_file
+from .model import SOFT, STATIC
+from .shapes import make_shape
+
+
+def rotation_matrix(degrees) -> np.ndarray:
+    """R = Rz·Ry·Rx for angles (x, y, z) in degrees."""
+    ax, ay, az = (math.radians(float(a)) for a in degrees)
+    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def body_mesh(body, base_dir: Path) -> trimesh.Trimesh:
+    """The body's mesh in world space: scaled, rotated about its own origin, then moved."""
+    if body.mesh is not None:
+        path = (base_dir / body.mesh)
+        if not path.is_file():
+            raise SceneError(f"body {body.name!r}: mesh file {path} does not exist")
+        try:
+            mesh = trimesh.load(path, force="mesh", process=False)
+        except Exception as exc:  # trimesh raises many types for unparsable files
+            raise SceneError(f"body {body.name!r}: cannot read mesh file {path} ({exc})") from None
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise SceneError(f"body {body.name!r}: mesh file {path} holds no triangles")
+    else:
+        try:
+            mesh = make_shape(body.shape, body.params)
+        except ValueError as exc:
+            raise SceneError(f"body {body.name!r}: {exc}") from None
+    v = np.asarray(mesh.vertices, np.float64) * body.scale
+    v = v @ rotation_matrix(body.rotation).T + np.asarray(body.position)
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+
+
+class Scene:
+    """A scene being simulated. `step(frames)` advances it; the accessors return numpy copies."""
+
+    def __init__(self, config: SceneConfig, broad_phase: str = "auto"):
+        from .solver import XPBDSolver
+
+        runtime.ensure_init()
+        self.config = config
+        builder = ModelBuilder()
+        for body in config.bodies:
+            mesh = body_mesh(body, config.base_dir)
+            try:
+                builder.add_body(BodySpec(
+                    name=body.name, vertices=mesh.vertices, faces=mesh.faces, kind=body.kind,
+                    density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
+                    restitution=body.restitution, compliance=body.compliance))
+            except ValueError as exc:
+                raise SceneError(str(exc)) from None
+        self.model, self.state = builder.finalize()
+        self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase)
+        self.frame = 0
+
+    @property
+    def name(self) -> str:
+        return self.config.name
+
+    @property
+    def time(self) -> float:
+        return self.state.time
+
+    @property
+    def body_names(self) -> list[str]:
+        return [b.name for b in self.model.bodies]
+
+    def step(self, frames: int = 1) -> int:
+        """Advance `frames` frames of the scene's frame_dt, substeps and iterations; returns the
+        contact count of the last frame. Raises solver.SimulationError on NaN or explosion."""
+        sim = self.config.sim
+        count = 0
+        for _ in range(frames):
+            count = self.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations)
+            self.frame += 1
+        return count
+
+    def body_vertices(self, name: str) -> np.ndarray:
+        """World-space vertices (n, 3) of a body, in the order of `body_faces(name)`."""
+        b = self.model.bodies[self.model.body_index(name)]
+        return self.state.vertex_x.to_numpy()[b.vertex_start:b.vertex_start + b.vertex_count].astype(np.float64)
+
+    def body_faces(self, name: str) -> np.ndarray:
+        return self.model.bodies[self.model.body_index(name)].faces.copy()
+
+    def body_positions(self) -> np.ndarray:
+        """(B, 3): centre of mass of rigid bodies, vertex mean of soft and static ones."""
+        x = self.state.body_x.to_numpy()[: self.model.n_bodies].astype(np.float64)
+        for k, b in enumerate(self.model.bodies):
+            if b.kind == "soft":
+                x[k] = self.body_vertices(b.name).mean(axis=0)
+        return x
+
+    def body_rotations(self) -> np.ndarray:
+        """(B, 4) unit quaternions (w, x, y, z) from the build-time orientation (identity for soft)."""
+        return self.state.body_q.to_numpy()[: self.model.n_bodies].astype(np.float64)
+
+    def body_velocities(self) -> np.ndarray:
+        """(B, 3) linear velocities (m/s); a soft body's is its particles' mean. Velocities
+        are XPBD's (x − x_prev)/h of the last substep."""
+        v = self.state.body_v.to_numpy()[: self.model.n_bodies].astype(np.float64)
+        kind = self.model.body_kind.to_numpy()[: self.model.n_bodies]
+        if self.model.has_soft:
+            vv = self.state.vertex_v.to_numpy()
+            for k, b in enumerate(self.model.bodies):
+                if kind[k] == SOFT:
+                    v[k] = vv[b.vertex_start:b.vertex_start + b.vertex_count].mean(axis=0)
+        v[kind == STATIC] = 0.0
+        return v
+
+    def body_angular_velocities(self) -> np.ndarray:
+        """(B, 3) angular velocities (rad/s, world frame) of rigid bodies; 0 for others."""
+        w = self.state.body_w.to_numpy()[: self.model.n_bodies].astype(np.float64)
+        w[self.model.body_kind.to_numpy()[: self.model.n_bodies] != 1] = 0.0
+        return w
+
+    def kinetic_energy(self) -> float:
+        """Total kinetic energy (J) of rigid bodies (translation + rotation) and soft particles."""
+        m = self.model
+        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        inv_mass = m.body_inv_mass.to_numpy()[: m.n_bodies]
+        inertia = m.body_inertia.to_numpy()[: m.n_bodies]
+        v, w, q = self.state.body_v.to_numpy(), self.state.body_w.to_numpy(), self.body_rotations()
+        energy = 0.0
+        for k in np.flatnonzero(kind == 1):
+            r = quat_to_matrix(q[k])
+            energy += 0.5 * v[k] @ v[k] / inv_mass[k] + 0.5 * w[k] @ (r @ inertia[k] @ r.T) @ w[k]
+        if m.has_soft:
+            inv = m.vertex_inv_mass.to_numpy()[: m.n_vertices]
+            vv = self.state.vertex_v.to_numpy()[: m.n_vertices]
+            soft = inv > 0
+            energy += 0.5 * float(np.sum((vv[soft] ** 2).sum(axis=1) / inv[soft]))
+        return float(energy)
+
+    def body_mesh(self, name: str) -> trimesh.Trimesh:
+        """The body's current world-space mesh."""
+        return trimesh.Trimesh(self.body_vertices(name), self.body_faces(name), process=False)
+
+
+def quat_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def load_scene(path, broad_phase: str = "auto") -> Scene:
+    """Read a TOML scene file and build it (Taichi is initialised with the defaults if
+    nobody called `taichi_dcd.init`). Raises SceneError with a one-line message."""
+    return Scene(read_scene_file(path), broad_phase=broad_phase)

@@ -1,0 +1,151 @@
+"""XPBD rigid bodies against answers known in advance: free fall, resting contact,
+Coulomb friction on an incline, momentum conservation, and a tilted box settling flat."""
+
+import math
+
+import numpy as np
+import pytest
+
+from taichi_dcd.config import scene_from_dict
+from taichi_dcd.scene import Scene, quat_to_matrix
+
+G = 9.8
+
+
+def make_scene(bodies, **sim) -> Scene:
+    return Scene(scene_from_dict({"sim": sim, "body": bodies}, name="test"))
+
+
+def box(name, size, position, kind="rigid", **extra):
+    return {"name": name, "kind": kind, "shape": "box", "params": {"size": list(size)},
+            "position": list(position), **extra}
+
+
+def rotation_angle(q) -> float:
+    """Angle (rad) of the rotation of unit quaternion q = (w, x, y, z)."""
+    return 2.0 * math.acos(min(1.0, abs(q[0])))
+
+
+def test_free_fall_follows_the_parabola_exactly(f64):
+    """No contacts: x(t) = x0 + v0·t + g·t²/2 to 1e-9 m, and the rotation stays identity."""
+    x0, v0 = np.array([0.1, 2.0, -0.3]), np.array([0.5, 3.0, -1.0])
+    scene = make_scene([box("b", (0.2, 0.3, 0.4), x0, velocity=list(v0))], gravity=[0.0, -G, 0.0])
+    for _ in range(5):
+        scene.step(10)
+        t = scene.time
+        expected = x0 + v0 * t + 0.5 * np.array([0.0, -G, 0.0]) * t * t
+        np.testing.assert_allclose(scene.body_positions()[0], expected, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(scene.body_rotations()[0], [1.0, 0.0, 0.0, 0.0], atol=1e-12)
+
+
+def test_box_dropped_flat_rests_on_the_block_without_drift(f64):
+    """A 0.2 m box dropped 5 cm onto a static block comes to rest with its bottom face on the
+    block's top face (within 1e-5 of its size), unrotated, then holds still for 1,000 frames:
+    moves less than 1e-5 of its size and keeps its kinetic energy below 1e-8 of the impact energy."""
+    size, gap = 0.2, 0.05
+    scene = make_scene([box("box", (size,) * 3, (0.0, size / 2 + gap, 0.0)),
+                        box("block", (2.0, 0.2, 2.0), (0.0, -0.1, 0.0), kind="static")])
+    impact_energy = 8.0 * G * gap  # m = 1000 kg/m³ · 0.008 m³
+    scene.step(100)
+    rest = scene.body_positions()[0]
+    assert abs(rest[1] - size / 2) <= 1e-5 * size  # bottom face at y = 0, the block's top
+    assert rotation_angle(scene.body_rotations()[0]) < 1e-3
+    for _ in range(10):
+        scene.step(100)
+        assert scene.kinetic_energy() < 1e-8 * impact_energy
+    assert np.linalg.norm(scene.body_positions()[0] - rest) < 1e-5 * size
+    bottom = scene.body_vertices("box")[:, 1].min()
+    assert -1e-5 * size <= bottom <= 1e-5 * size
+
+
+def incline_scene(theta_deg: float, mu: float) -> Scene:
+    """A 0.2 m box resting on a static 6 m plank inclined by theta about z (downhill is -x)."""
+    th = math.radians(theta_deg)
+    normal = np.array([-math.sin(th), math.cos(th), 0.0])
+    plank_centre = -0.1 * normal  # plank 0.2 thick: its top face passes through the origin
+    box_centre = (0.1 + 1e-5) * normal
+    return make_scene([
+        box("box", (0.2, 0.2, 0.2), box_centre, rotation=[0.0, 0.0, theta_deg], friction=mu),
+        box("plank", (6.0, 0.2, 1.0), plank_centre, kind="static", rotation=[0.0, 0.0, theta_deg], friction=mu),
+    ])
+
+
+def downhill_distance(scene: Scene, theta_deg: float) -> float:
+    th = math.radians(theta_deg)
+    downhill = np.array([-math.cos(th), -math.sin(th), 0.0])
+    return float(scene.body_positions()[0] @ downhill)
+
+
+@pytest.mark.parametrize("theta_deg", [15.0, 20.0])
+def test_box_stays_on_incline_below_the_friction_angle(f64, theta_deg):
+    """tan θ < μ = 0.5 (θ < 26.57°): static friction holds the box (moves < 0.1 mm in 1 s).
+    Closer to the friction angle the box creeps (4e-5 m/s at 22°, 9e-4 m/s at 25°)."""
+    scene = incline_scene(theta_deg, mu=0.5)
+    start = downhill_distance(scene, theta_deg)
+    scene.step(100)
+    assert abs(downhill_distance(scene, theta_deg) - start) < 1e-4
+
+
+@pytest.mark.parametrize("theta_deg", [30.0, 40.0])
+def test_box_slides_down_incline_with_coulomb_acceleration(f64, theta_deg):
+    """tan θ > μ = 0.5: the box slides with a = g(sin θ − μ cos θ), within 2%."""
+    mu = 0.5
+    scene = incline_scene(theta_deg, mu)
+    scene.step(10)
+    times, dist = [], []
+    for _ in range(40):
+        scene.step(2)
+        times.append(scene.time)
+        dist.append(downhill_distance(scene, theta_deg))
+    accel = 2.0 * np.polyfit(times, dist, 2)[0]
+    th = math.radians(theta_deg)
+    expected = G * (math.sin(th) - mu * math.cos(th))
+    assert accel == pytest.approx(expected, rel=0.02)
+    assert rotation_angle(scene.body_rotations()[0]) < 1e-2  # slides flat, does not tumble
+
+
+def momenta(scene: Scene):
+    """Total linear momentum (3,) and angular momentum about the origin (3,) of rigid bodies."""
+    m = scene.model
+    mass = 1.0 / m.body_inv_mass.to_numpy()[: m.n_bodies]
+    inertia = m.body_inertia.to_numpy()[: m.n_bodies]
+    x, v, w, q = scene.body_positions(), scene.body_velocities(), scene.body_angular_velocities(), \
+        scene.body_rotations()
+    p = (mass[:, None] * v).sum(axis=0)
+    ang = np.zeros(3)
+    for k in range(m.n_bodies):
+        r = quat_to_matrix(q[k])
+        ang += mass[k] * np.cross(x[k], v[k]) + r @ inertia[k] @ r.T @ w[k]
+    return p, ang
+
+
+def test_free_collision_conserves_linear_momentum(f64):
+    """Two boxes meet off-centre without gravity: the impact turns them, and total linear
+    momentum holds to 1e-9 relative. (Angular momentum does not yet hold: it changes by ~30%
+    in this collision; see README, known problems.)"""
+    scene = make_scene([
+        box("a", (0.2, 0.2, 0.2), (-0.3, 0.05, 0.0), velocity=[2.0, 0.0, 0.0]),
+        box("b", (0.3, 0.1, 0.2), (0.3, -0.05, 0.02), velocity=[-1.0, 0.0, 0.0], density=500.0),
+    ], gravity=[0.0, 0.0, 0.0])
+    p0, _ = momenta(scene)
+    scene.step(40)
+    p1, _ = momenta(scene)
+    assert np.linalg.norm(scene.body_angular_velocities()[0]) > 0.1  # the collision did happen off-centre
+    assert np.linalg.norm(p1 - p0) <= 1e-9 * np.linalg.norm(p0)
+
+
+def test_tilted_box_lands_on_an_edge_and_settles_on_a_face(f64):
+    """Dropped turned 30° about z, the box lands on an edge, tips over and comes to rest on a
+    face: four vertices on the block and four a box height above (within 1e-4 of the size; seen:
+    3e-6 m)."""
+    size = 0.2
+    scene = make_scene([
+        box("box", (size,) * 3, (0.0, 0.2, 0.0), rotation=[0.0, 0.0, 30.0]),
+        box("block", (2.0, 0.2, 2.0), (0.0, -0.1, 0.0), kind="static"),
+    ])
+    scene.step(200)
+    assert scene.kinetic_energy() < 1e-8
+    y = np.sort(scene.body_vertices("box")[:, 1])
+    assert np.all(np.abs(y[:4]) <= 1e-4 * size)
+    # Flat on a face: the other four vertices a box height above (on an edge they would not be).
+    assert np.all(np.abs(y[4:] - size) <= 1e-4 * size)
