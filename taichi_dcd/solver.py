@@ -34,7 +34,7 @@ from .collision import CollisionPipeline
 from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
 from .contacts import ContactConstraints
 from .geometry import barycentric, longest_edge_sq
-from .model import RIGID, SOFT, STATIC, Model, State, mat_field, scalar_field, vec_field
+from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
 from .narrowphase import collide_triangle_pair
 from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
                     gyroscopic_step, integrate_rotation, quat_rotate)
@@ -530,12 +530,6 @@ class XPBDSolver:
             for i in range(ti.static(self.model.n_vertices)):
                 self.state.vertex_x[i] = self.saved_vertex[0][i]
                 self.state.vertex_v[i] = self.saved_vertex[1][i]
-
-    @ti.kernel
-    def _place_vertices(self):
-        """vertex_x of rigid bodies from their poses."""
-        for i in range(ti.static(self.model.n_vertices)):
-            self.place_vertex(i)
 
     @ti.func
     def project(self, n_contacts: ti.i32, iterations: ti.i32, h: float, c_tri: ti.template(),
