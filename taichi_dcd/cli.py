@@ -42,21 +42,26 @@ def build_parser() -> argparse.ArgumentParser:
     collide.add_argument("b", type=_triangle, help="triangle B, same form")
     collide.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
     collide.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
+    sub.add_parser("list", help="list the built-in scenes", description="List the built-in scenes, one line each.")
     run = sub.add_parser(
         "run",
-        help="simulate a scene file and write final meshes and metrics",
-        description="Simulate SCENE (a TOML scene file, DESIGN.md §4) and write final/<body>.obj, "
-                    "metrics.json and metrics.csv into the output folder. Exit status 0 on success, "
-                    "1 if the simulation failed (NaN, explosion), 2 for bad usage or input.",
+        help="simulate a scene and write frames, final meshes and metrics",
+        description="Simulate SCENE (a built-in name from `taichi-dcd list`, `all` for every built-in "
+                    "scene, or a TOML scene file, DESIGN.md §4) and write frames/, final/<body>.obj, "
+                    "metrics.json and metrics.csv into the output folder. `all` also writes "
+                    "outputs/contact-sheet.png. Exit status 0 on success, 1 if the simulation failed "
+                    "(NaN, explosion), 2 for bad usage or input.",
     )
-    run.add_argument("scene", help="path to a scene file (.toml)")
+    run.add_argument("scene", help="built-in scene name, `all`, or path to a scene file (.toml)")
     run.add_argument("--frames", type=_positive_int, help="frames to simulate (default: the scene's)")
     run.add_argument("--substeps", type=_positive_int, help="substeps per frame (default: the scene's)")
     run.add_argument("--iterations", type=_positive_int, help="solver sweeps per substep (default: the scene's)")
     run.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
     run.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
-    run.add_argument("--out", help="output folder (default outputs/<scene>/)")
-    run.add_argument("--no-frames", action="store_true", help="write no frame images (none are rendered yet)")
+    run.add_argument("--out", help="output folder (default outputs/<scene>/; with `all`, the parent folder)")
+    run.add_argument("--no-frames", action="store_true", help="render no frames (faster)")
+    run.add_argument("--gif", action="store_true", help="also write animation.gif")
+    run.add_argument("--contacts", action="store_true", help="draw the contact points in the frames")
     run.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
 
@@ -71,37 +76,90 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _cmd_run(args) -> int:
-    from pathlib import Path
+def _load_config(name: str):
+    """A built-in scene's config, or a scene file's."""
+    from .builtin_scenes import SCENES, builtin_scene
+    from .config import read_scene_file
 
+    if name in SCENES:
+        return builtin_scene(name)
+    if not name.endswith(".toml") and "/" not in name and not os.path.exists(name):
+        from .config import SceneError
+
+        raise SceneError(f"unknown scene {name!r}: not a built-in scene (see `taichi-dcd list`) nor a file")
+    return read_scene_file(name)
+
+
+def _run_one(config, args, out) -> tuple[int, dict | None]:
     from . import runtime
-    from .config import SceneError, read_scene_file
+    from .config import SceneError
     from .run import run_scene
     from .scene import Scene
 
     try:
-        config = read_scene_file(args.scene)
         if args.substeps:
             config.sim.substeps = args.substeps
         if args.iterations:
             config.sim.iterations = args.iterations
         runtime.init(arch=args.arch, precision=args.precision)
-        print(f"taichi-dcd: building {config.name} ({len(config.bodies)} bodies)", file=sys.stderr)
+        if not args.quiet:
+            print(f"taichi-dcd: building {config.name} ({len(config.bodies)} bodies)", file=sys.stderr)
         scene = Scene(config)
     except (SceneError, RuntimeError) as exc:
         print(f"taichi-dcd: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out) if args.out else Path("outputs") / config.name
+        return 2, None
     try:
-        metrics = run_scene(scene, out, frames=args.frames, progress=None if args.quiet else sys.stderr)
+        metrics = run_scene(scene, out, frames=args.frames, progress=None if args.quiet else sys.stderr,
+                            render=not args.no_frames, gif=args.gif, draw_contacts=args.contacts)
     except KeyboardInterrupt:
         print(f"taichi-dcd: interrupted; partial results in {out}", file=sys.stderr)
-        return 1
+        return 1, None
     if not metrics["complete"]:
         print(f"taichi-dcd: error: {metrics['error']} (last good state in {out})", file=sys.stderr)
-        return 1
-    print(f"{config.name}: {metrics['frames']} frames, {metrics['sim_time']:.3f} s simulated in "
-          f"{metrics['wall_time_s']:.2f} s wall; results in {out}")
+        return 1, metrics
+    verdict = "settled" if metrics["settled"] else "not settled"
+    print(f"{config.name}: {metrics['frames']} frames, {metrics['sim_time']:.2f} s simulated in "
+          f"{metrics['wall_time_s']:.1f} s wall, {verdict}; penetration final "
+          f"{metrics['final_penetration_depth']:.2e} m, max {metrics['max_penetration_depth']:.2e} m, "
+          f"overlap {metrics['final_overlap_volume']:.2e} m³; results in {out}")
+    return 0, metrics
+
+
+def _cmd_run(args) -> int:
+    from pathlib import Path
+
+    from .config import SceneError
+
+    if args.scene == "all":
+        from .builtin_scenes import builtin_names
+
+        root = Path(args.out) if args.out else Path("outputs")
+        status, finished = 0, []
+        for name in builtin_names():
+            code, _ = _run_one(_load_config(name), args, root / name)
+            status = max(status, code)
+            finished.append(name)
+        if not args.no_frames:
+            from .render import write_contact_sheet
+
+            write_contact_sheet([(n, root / n / "frames") for n in finished], root / "contact-sheet.png")
+            print(f"contact sheet: {root / 'contact-sheet.png'}")
+        return status
+    try:
+        config = _load_config(args.scene)
+    except SceneError as exc:
+        print(f"taichi-dcd: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("outputs") / config.name
+    return _run_one(config, args, out)[0]
+
+
+def _cmd_list(args) -> int:
+    from .builtin_scenes import SCENES
+
+    width = max(len(n) for n in SCENES)
+    for name, (text, _) in SCENES.items():
+        print(f"{name:<{width}}  {text}")
     return 0
 
 
@@ -139,5 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         return _cmd_collide(args)
     if args.command == "run":
         return _cmd_run(args)
+    if args.command == "list":
+        return _cmd_list(args)
     parser.error(f"unknown command {args.command!r}")
     return 2

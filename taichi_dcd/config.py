@@ -16,6 +16,9 @@ from pathlib import Path
 # (a box resting on a block creeps ~1e-7 m per frame with 4 sweeps, ~1e-9 with 8).
 DEFAULT_SUBSTEPS = 10
 DEFAULT_ITERATIONS = 8
+# A scene has settled once every vertex has moved slower than SETTLE_SPEED (m/s) for SETTLE_TIME (s).
+SETTLE_SPEED = 1e-3
+SETTLE_TIME = 0.2
 
 
 class SceneError(ValueError):
@@ -29,6 +32,8 @@ class SimConfig:
     substeps: int = DEFAULT_SUBSTEPS
     iterations: int = DEFAULT_ITERATIONS
     gravity: tuple = (0.0, -9.8, 0.0)
+    # Stop before `frames` once every vertex has been slower than SETTLE_SPEED for SETTLE_TIME.
+    stop_when_settled: bool = False
 
 
 @dataclass
@@ -58,7 +63,7 @@ class SceneConfig:
 
 
 _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "iterations": "count",
-             "gravity": "vec3"}
+             "gravity": "vec3", "stop_when_settled": "bool"}
 _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg"}
@@ -75,6 +80,9 @@ def _check(where: str, key: str, value, rule: str):
     if rule == "str":
         if not isinstance(value, str) or not value:
             bad = "a non-empty string"
+    elif rule == "bool":
+        if not isinstance(value, bool):
+            bad = "true or false"
     elif rule == "table":
         if not isinstance(value, dict):
             bad = "a table"

@@ -49,7 +49,7 @@ class Contacts:
         real = runtime.real_type()
         vec3 = ti.types.vector(3, real)
         self.pair = ti.ndarray(ivec2, shape=capacity)
-        self.depth = ti.ndarray(real, shape=capacity)
+        self.budget = ti.ndarray(real, shape=capacity)
         self.normal = ti.ndarray(vec3, shape=capacity)
         self.side = ti.ndarray(ti.i8, shape=capacity)
         self.point = ti.ndarray(vec3, shape=capacity)
@@ -57,7 +57,7 @@ class Contacts:
 
     @property
     def capacity(self) -> int:
-        return self.depth.shape[0]
+        return self.budget.shape[0]
 
     def grow(self, needed: int) -> None:
         """Reallocate for at least `needed` rows (contents are lost; run the query again)."""
@@ -80,7 +80,8 @@ class ContactConstraints:
     Row k ties a point of the moved triangle `tri[k][0]` (barycentric weights
     `bary_moved[k]`) to a point of the other triangle `tri[k][1]` (`bary_other[k]`);
     the moved point is pushed along the unit `normal[k]` until it reaches the other
-    point's plane. `depth[k]` is C at detection, `lambda_n[k]`, `lambda_t[k]` the
+    point's plane. `budget[k]` is how much more of C (m) it may correct this substep (see
+    solver.DEPENETRATION_SPEED), `lambda_n[k]`, `lambda_t[k]` the
     normal and static-friction multipliers accumulated this substep (kg·m), `vn0[k]`
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s).
@@ -100,7 +101,7 @@ class ContactConstraints:
         self.bary_moved = ti.ndarray(vec3, shape=capacity)
         self.bary_other = ti.ndarray(vec3, shape=capacity)
         self.normal = ti.ndarray(vec3, shape=capacity)
-        self.depth = ti.ndarray(real, shape=capacity)
+        self.budget = ti.ndarray(real, shape=capacity)
         self.lambda_n = ti.ndarray(real, shape=capacity)
         self.lambda_t = ti.ndarray(real, shape=capacity)
         self.vn0 = ti.ndarray(real, shape=capacity)
@@ -108,7 +109,7 @@ class ContactConstraints:
 
     @property
     def capacity(self) -> int:
-        return self.depth.shape[0]
+        return self.budget.shape[0]
 
     def grow(self, needed: int) -> None:
         """Reallocate for at least `needed` rows (contents are lost)."""
@@ -116,5 +117,5 @@ class ContactConstraints:
 
     def arrays(self) -> tuple:
         """The ndarrays in the order the solver's kernels take them."""
-        return (self.tri, self.bary_moved, self.bary_other, self.normal, self.depth,
+        return (self.tri, self.bary_moved, self.bary_other, self.normal, self.budget,
                 self.lambda_n, self.lambda_t, self.vn0, self.impulse_t)

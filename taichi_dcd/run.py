@@ -1,5 +1,5 @@
-"""Running a scene into an output folder (DESIGN.md §4): final meshes, metrics.json
-(written atomically) and metrics.csv, with progress on stderr."""
+"""Running a scene into an output folder (DESIGN.md §4): frames, final meshes,
+metrics.json (written atomically) and metrics.csv, with progress on stderr."""
 
 from __future__ import annotations
 
@@ -10,7 +10,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from . import runtime
+from .config import SETTLE_SPEED, SETTLE_TIME
 from .scene import Scene
 from .solver import SimulationError
 
@@ -22,62 +25,157 @@ def write_json_atomic(path: Path, data: dict) -> None:
     os.replace(tmp, path)
 
 
-def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.stderr) -> dict:
-    """Simulate `frames` frames (default: the scene's) and write the run's files into out_dir:
-    final/<body>.obj, metrics.csv (one row per frame: time, kinetic energy, contacts) and
-    metrics.json. Returns the metrics. A failed run (NaN, explosion) or an interrupt still
-    writes metrics.json, with "complete": false and the reason."""
+class FrameWriter:
+    """Renders the scene's frames to frames/frame_NNNNN.png with a camera fixed at the start
+    (framing every body but static ones much larger than the moving ones, such as a ground)."""
+
+    def __init__(self, scene: Scene, out: Path, width: int = 800, height: int = 600, contacts: bool = False,
+                 gif: bool = False):
+        from .render import Rasterizer, body_colors, framing_camera
+
+        self.scene, self.dir, self.contacts = scene, out / "frames", contacts
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.rasterizer = Rasterizer(width, height)
+        bodies = scene.model.bodies
+        colors = body_colors([b.kind for b in bodies])
+        self.faces = np.concatenate([b.faces + b.vertex_start for b in bodies])
+        self.face_rgb = np.concatenate([np.tile(colors[k], (b.tri_count, 1)) for k, b in enumerate(bodies)])
+        x = scene.vertices()
+        boxes = [(x[b.vertex_start:b.vertex_start + b.vertex_count].min(axis=0),
+                  x[b.vertex_start:b.vertex_start + b.vertex_count].max(axis=0)) for b in bodies]
+        moving = [bx for bx, b in zip(boxes, bodies) if b.kind != "static"] or boxes
+        reach = max(float(np.linalg.norm(hi - lo)) for lo, hi in moving)
+        framed = [bx for bx, b in zip(boxes, bodies)
+                  if b.kind != "static" or np.linalg.norm(bx[1] - bx[0]) <= 3.0 * reach]
+        self.camera = framing_camera(np.min([lo for lo, _ in framed], axis=0), np.max([hi for _, hi in framed], axis=0))
+        self.gif_frames = [] if gif else None
+        self.count = 0
+
+    def write(self) -> None:
+        from .render import write_png
+
+        points = self.scene.contact_points() if self.contacts else None
+        image = self.rasterizer.render(self.scene.vertices(), self.faces, self.face_rgb, self.camera, points)
+        write_png(self.dir / f"frame_{self.count:05d}.png", image)
+        if self.gif_frames is not None and self.count % GIF_EVERY == 0:
+            self.gif_frames.append(image[::2, ::2].copy())
+        self.count += 1
+
+    def write_gif(self, path: Path, frame_dt: float) -> None:
+        from PIL import Image
+
+        if not self.gif_frames:
+            return
+        images = [Image.fromarray(f) for f in self.gif_frames]
+        tmp = path.with_name(path.name + ".tmp")
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                       duration=max(20, int(round(1000 * frame_dt * GIF_EVERY))))
+        os.replace(tmp, path)
+
+
+# The GIF keeps every GIF_EVERY-th frame at half resolution (real time at 0.01 s frames).
+GIF_EVERY = 4
+CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", "contact_count",
+               "max_vertex_speed"]
+
+
+def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.stderr, render: bool = False,
+              gif: bool = False, draw_contacts: bool = False) -> dict:
+    """Simulate `frames` frames (default: the scene's; fewer once settled if the scene's
+    sim.stop_when_settled) and write the run's files into out_dir (DESIGN.md §4):
+    final/<body>.obj, metrics.csv (one row per frame), metrics.json, and with `render`
+    frames/frame_NNNNN.png (frame 0 = the initial state), with `gif` animation.gif.
+    Penetration is measured every frame from the meshes alone (metrics.py). Returns the
+    metrics. A failed run (NaN, explosion) or an interrupt still writes metrics.json, with
+    "complete": false and the reason."""
     out = Path(out_dir)
     (out / "final").mkdir(parents=True, exist_ok=True)
     sim = scene.config.sim
     frames = sim.frames if frames is None else int(frames)
+    writer = FrameWriter(scene, out, contacts=draw_contacts, gif=gif) if render else None
+    if writer:
+        writer.write()
+    moving = scene.moving_vertex_mask()
+    x_prev = scene.vertices()[moving]
     rows = []
     error = None
     interrupted = False
+    calm_since = None           # time at which every vertex became slower than SETTLE_SPEED
+    settled = False
+    max_depth = 0.0
+    step_times = []             # wall time of each frame's simulation alone
     start = time.perf_counter()
     last_report = start
     first_frame_end = None
     try:
         for f in range(frames):
+            t0 = time.perf_counter()
             contacts = scene.step(1)
-            rows.append((scene.time, scene.kinetic_energy(), contacts))
+            step_times.append(time.perf_counter() - t0)
+            x = scene.vertices()[moving]
+            speed = float(np.max(np.linalg.norm(x - x_prev, axis=1)) / sim.frame_dt) if len(x) else 0.0
+            x_prev = x
+            pen = scene.penetration()
+            max_depth = max(max_depth, pen.depth)
+            rows.append((scene.time, pen.depth, pen.volume, scene.kinetic_energy(), contacts, speed))
+            if writer:
+                writer.write()
+            if speed < SETTLE_SPEED:
+                calm_since = scene.time - sim.frame_dt if calm_since is None else calm_since
+            else:
+                calm_since = None
+            settled = calm_since is not None and scene.time - calm_since >= SETTLE_TIME - 1e-9
             now = time.perf_counter()
             if f == 0:
                 first_frame_end = now
-            if progress is not None and (now - last_report > 1.0 or f == frames - 1):
+            if progress is not None and (now - last_report > 1.0 or f == frames - 1 or settled):
                 print(f"  frame {f + 1}/{frames}  t = {scene.time:.3f} s  contacts {contacts}  "
-                      f"wall {now - start:.1f} s", file=progress, flush=True)
+                      f"depth {pen.depth:.2e} m  speed {speed:.1e} m/s  wall {now - start:.1f} s",
+                      file=progress, flush=True)
                 last_report = now
+            if settled and sim.stop_when_settled:
+                break
     except SimulationError as exc:
         error = str(exc)
     except KeyboardInterrupt:
         interrupted = True
     wall = time.perf_counter() - start
-    # The first frame compiles the kernels (seconds); the rate is measured without it.
+    # The first frame compiles the kernels (seconds); the rate is measured without it, and
+    # without the rendering and penetration measurement around the steps.
     first_frame = first_frame_end - start if first_frame_end else wall
-    steady_time = scene.time - (rows[0][0] if rows else 0.0)
+    steady_time = sim.frame_dt * (len(step_times) - 1)
     with open(out / "metrics.csv", "w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(["time", "kinetic_energy", "contact_count"])
-        writer.writerows(rows)
+        csv_writer = csv.writer(fh)
+        csv_writer.writerow(CSV_COLUMNS)
+        csv_writer.writerows(rows)
     for name in scene.body_names:
         scene.body_mesh(name).export(out / "final" / f"{name}.obj")
+    if writer and gif:
+        writer.write_gif(out / "animation.gif", sim.frame_dt)
+    final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0, 0.0)
     metrics = {
         "scene": scene.name,
         "frames": len(rows),
         "sim_time": scene.time,
         "wall_time_s": wall,
         "first_frame_wall_s": first_frame,
-        "wall_time_per_sim_second": (wall - first_frame) / steady_time if steady_time > 0 else None,
+        "wall_time_per_sim_second": sum(step_times[1:]) / steady_time if steady_time > 0 else None,
+        "final_penetration_depth": final[1],
+        "max_penetration_depth": max_depth,
+        "final_overlap_volume": final[2],
+        "settled": settled,
+        "time_to_settle": calm_since if settled else None,
+        "final_max_vertex_speed": final[5],
         "nan_detected": error is not None and "NaN" in error,
         "complete": error is None and not interrupted,
         "error": error or ("interrupted" if interrupted else None),
-        "final_kinetic_energy": rows[-1][1] if rows else None,
+        "final_kinetic_energy": final[3],
         "contact_buffer_growths": scene.solver.contact_growths,
         "settings": {
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,
             "iterations": sim.iterations, "precision": runtime.precision(), "arch": runtime.settings()["arch"],
             "broad_phase": "grid" if scene.solver.use_grid else "all-pairs",
+            "stop_when_settled": sim.stop_when_settled,
         },
     }
     write_json_atomic(out / "metrics.json", metrics)

@@ -156,6 +156,38 @@ class Scene:
         """The body's current world-space mesh."""
         return trimesh.Trimesh(self.body_vertices(name), self.body_faces(name), process=False)
 
+    def vertices(self) -> np.ndarray:
+        """World-space vertices (V, 3) of all bodies, body after body (see `body_vertex_slices`)."""
+        return self.state.vertex_x.to_numpy()[: self.model.n_vertices].astype(np.float64)
+
+    def moving_vertex_mask(self) -> np.ndarray:
+        """(V,) True for the vertices of rigid and soft bodies."""
+        mask = np.zeros(self.model.n_vertices, bool)
+        for b in self.model.bodies:
+            mask[b.vertex_start:b.vertex_start + b.vertex_count] = b.kind != "static"
+        return mask
+
+    def penetration(self):
+        """Penetration measured from the current meshes alone (metrics.scene_penetration)."""
+        from .metrics import scene_penetration
+
+        x = self.vertices()
+        return scene_penetration([
+            (b.name, b.kind, trimesh.Trimesh(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces,
+                                             process=False))
+            for b in self.model.bodies])
+
+    def contact_points(self) -> np.ndarray:
+        """(n, 3) world positions of the last substep's contacts (the moved triangles' points)."""
+        n = self.solver.last_contact_count
+        if n == 0:
+            return np.zeros((0, 3))
+        c = self.solver.contacts
+        tri = c.tri.to_numpy()[:n, 0]
+        bary = c.bary_moved.to_numpy()[:n].astype(np.float64)
+        corners = self.vertices()[self.model.tri_indices_np[tri]]
+        return np.einsum("nk,nkd->nd", bary, corners)
+
 
 def quat_to_matrix(q) -> np.ndarray:
     """Rotation matrix of a unit quaternion (w, x, y, z)."""

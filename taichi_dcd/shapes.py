@@ -1,8 +1,13 @@
 """Built-in procedural shapes, usable in scene files as `shape = "..."` with their
-parameters in `[body.params]`. Each returns a closed, outward-oriented trimesh.Trimesh
-(y up, metres) centred on the origin. The Erleben shapes join them with the scenes.
+parameters in `[body.params]`. Each returns a closed, outward-oriented, watertight
+trimesh.Trimesh without T-junctions (y up, metres).
+
+The Erleben shapes (spike, wedge, crack_block, hole_block, ground) stand on y = 0:
+their lowest face lies in that plane (the ground's top face does), centred on x and z.
+`box` and `icosphere` are centred on the origin.
 """
 
+import numpy as np
 import trimesh
 
 
@@ -16,11 +21,132 @@ def box(size=(1.0, 1.0, 1.0), subdivisions: int = 0) -> trimesh.Trimesh:
 
 
 def icosphere(radius: float = 0.5, subdivisions: int = 3) -> trimesh.Trimesh:
-    """An icosphere (20·4^subdivisions triangles)."""
+    """An icosphere (20·4^subdivisions triangles; 3 gives 1,280)."""
     return trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=float(radius))
 
 
-SHAPES = {"box": box, "icosphere": icosphere}
+def spike(base: float = 1.0, height: float = 3.0) -> trimesh.Trimesh:
+    """A square pyramid: base `base` × `base` in the plane y = 0, apex at (0, height, 0)."""
+    h = 0.5 * _positive("base", base)
+    v = [(-h, 0, -h), (h, 0, -h), (h, 0, h), (-h, 0, h), (0, _positive("height", height), 0)]
+    f = [(0, 1, 2), (0, 2, 3), (3, 2, 4), (2, 1, 4), (1, 0, 4), (0, 3, 4)]
+    return _mesh(v, f)
+
+
+def wedge(base: float = 1.0, height: float = 3.0, length: float = 2.0) -> trimesh.Trimesh:
+    """A triangular prism along z: cross-section `base` wide at y = 0 with its ridge at
+    (0, height), `length` long (z from −length/2 to length/2)."""
+    h = 0.5 * _positive("base", base)
+    return extrude([(-h, 0.0), (h, 0.0), (0.0, _positive("height", height))], length)
+
+
+def crack_block(size=(2.0, 1.0, 4.0), width: float = 1.0, depth: float = 0.5) -> trimesh.Trimesh:
+    """A block `size` (x, y, z), bottom at y = 0, with a V-groove along z in its top face:
+    `width` wide at the top, `depth` deep (1 and 0.5 give a 90° opening), bottom line at
+    x = 0, y = size_y − depth."""
+    sx, sy, sz = (_positive(f"size[{i}]", s) for i, s in enumerate(size))
+    w, d = 0.5 * _positive("width", width), _positive("depth", depth)
+    if not (w < 0.5 * sx and d < sy):
+        raise ValueError(f"the groove ({width} wide, {depth} deep) must fit inside the block {size}")
+    x = 0.5 * sx
+    outline = [(-x, 0.0), (x, 0.0), (x, sy), (w, sy), (0.0, sy - d), (-w, sy), (-x, sy)]
+    return extrude(outline, sz)
+
+
+def hole_block(size=(2.0, 1.0, 2.0), hole: float = 1.0, depth: float = 0.5, pit: bool = False) -> trimesh.Trimesh:
+    """A block `size` (x, y, z), bottom at y = 0, with a `hole` × `hole` opening centred in
+    its top face, `depth` deep: a square pocket with vertical walls and a flat floor, or
+    with `pit = true` an inverted square pyramid with its apex at (0, size_y − depth, 0)."""
+    sx, sy, sz = (_positive(f"size[{i}]", s) for i, s in enumerate(size))
+    a, d = 0.5 * _positive("hole", hole), _positive("depth", depth)
+    if not (a < 0.5 * min(sx, sz) and d < sy):
+        raise ValueError(f"the hole ({hole} wide, {depth} deep) must fit inside the block {size}")
+    X, Z = 0.5 * sx, 0.5 * sz
+    # 0-3 bottom corners, 4-7 top outer corners, 8-11 opening corners, each ring clockwise seen from +y
+    v = [(-X, 0, -Z), (X, 0, -Z), (X, 0, Z), (-X, 0, Z),
+         (-X, sy, -Z), (X, sy, -Z), (X, sy, Z), (-X, sy, Z),
+         (-a, sy, -a), (a, sy, -a), (a, sy, a), (-a, sy, a)]
+    f = [(0, 1, 2), (0, 2, 3)]                                       # bottom
+    for i in range(4):
+        j = (i + 1) % 4
+        f += [(i, 4 + j, j), (i, 4 + i, 4 + j)]                      # outer walls
+        f += [(4 + i, 8 + j, 4 + j), (4 + i, 8 + i, 8 + j)]          # top ring
+    if pit:
+        v.append((0, sy - d, 0))
+        f += [(8 + i, 12, 8 + (i + 1) % 4) for i in range(4)]        # pit faces
+    else:
+        v += [(-a, sy - d, -a), (a, sy - d, -a), (a, sy - d, a), (-a, sy - d, a)]
+        for i in range(4):
+            j = (i + 1) % 4
+            f += [(8 + i, 12 + j, 8 + j), (8 + i, 12 + i, 12 + j)]   # pocket walls
+        f += [(12, 14, 13), (12, 15, 14)]                            # pocket floor
+    return _mesh(v, f)
+
+
+def ground(size=(12.0, 1.0, 12.0)) -> trimesh.Trimesh:
+    """A slab `size` (x, y, z) with its top face at y = 0, centred on x and z."""
+    sx, sy, sz = (_positive(f"size[{i}]", s) for i, s in enumerate(size))
+    mesh = trimesh.creation.box(extents=[sx, sy, sz])
+    mesh.apply_translation([0.0, -0.5 * sy, 0.0])
+    return mesh
+
+
+def extrude(outline, length: float) -> trimesh.Trimesh:
+    """A prism: the simple polygon `outline` ((x, y) pairs, counter-clockwise, no repeated
+    point) extruded along z from −length/2 to length/2; caps by ear clipping, sides as quads."""
+    p = np.asarray(outline, np.float64)
+    n = len(p)
+    z = 0.5 * _positive("length", length)
+    v = np.vstack([np.c_[p, np.full(n, z)], np.c_[p, np.full(n, -z)]])
+    caps = _ear_clip(p)
+    f = [tuple(t) for t in caps]                                     # front cap (+z), counter-clockwise
+    f += [(n + c, n + b, n + a) for a, b, c in caps]                 # back cap (−z), reversed
+    for i in range(n):
+        j = (i + 1) % n
+        f += [(i, n + i, n + j), (i, n + j, j)]
+    return _mesh(v, f)
+
+
+def _ear_clip(p: np.ndarray) -> list[tuple[int, int, int]]:
+    """Counter-clockwise triangles covering the simple counter-clockwise polygon p (n, 2)."""
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    area2 = sum(cross((0.0, 0.0), p[i], p[(i + 1) % len(p)]) for i in range(len(p)))
+    if not area2 > 0:
+        raise ValueError("an outline must be a counter-clockwise polygon with positive area")
+    left = list(range(len(p)))
+    tris = []
+    while len(left) > 3:
+        for k in range(len(left)):
+            a, b, c = left[k - 1], left[k], left[(k + 1) % len(left)]
+            if cross(p[a], p[b], p[c]) <= 0:
+                continue                                             # reflex corner
+            if any(cross(p[a], p[b], p[q]) >= 0 and cross(p[b], p[c], p[q]) >= 0 and cross(p[c], p[a], p[q]) >= 0
+                   for q in left if q not in (a, b, c)):
+                continue                                             # another corner inside the ear
+            tris.append((a, b, c))
+            left.pop(k)
+            break
+        else:
+            raise ValueError("the outline is not a simple polygon")
+    tris.append(tuple(left))
+    return tris
+
+
+def _positive(name: str, value) -> float:
+    value = float(value)
+    if not value > 0:
+        raise ValueError(f"{name} must be positive, got {value}")
+    return value
+
+
+def _mesh(vertices, faces) -> trimesh.Trimesh:
+    return trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int64), process=False)
+
+
+SHAPES = {"box": box, "icosphere": icosphere, "spike": spike, "wedge": wedge, "crack_block": crack_block,
+          "hole_block": hole_block, "ground": ground}
 
 
 def make_shape(name: str, params: dict) -> trimesh.Trimesh:

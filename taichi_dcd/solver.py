@@ -50,6 +50,10 @@ BRUTE_FORCE_MAX_PAIRS = 200_000
 # Contacts are checked for duplicates while the buffer holds at most this many rows
 # (the check is quadratic; large scenes' contacts rarely share points exactly).
 DEDUP_MAX_ROWS = 4096
+# Depth a contact did not make during its own substep (older penetration, or a depth
+# measured along a poor normal at a degenerate feature) is undone at most this fast (m/s):
+# pushing it out in one substep turns it into a launch velocity of depth/h.
+DEPENETRATION_SPEED = 0.2
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
 
@@ -234,11 +238,12 @@ class XPBDSolver:
 
     @ti.func
     def write_contact(self, k: ti.i32, t_moved: ti.i32, t_other: ti.i32, depth: float, normal: vec3,
-                      point: vec3, c_tri: ti.template(), c_bary_moved: ti.template(),
-                      c_bary_other: ti.template(), c_normal: ti.template(), c_depth: ti.template(),
+                      point: vec3, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                      c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                       c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()):
         """Row k: the moved triangle's deepest point and the point C·N further on, on the
-        other triangle, as barycentric anchors (Eq. 6 with −∇C = N)."""
+        other triangle, as barycentric anchors (Eq. 6 with −∇C = N). Its correction budget
+        is the depth the substep's own motion made, plus `max_push` (m) of older depth."""
         im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
         bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
         target = point + depth * normal
@@ -247,7 +252,10 @@ class XPBDSolver:
         c_bary_moved[k] = bary_m
         c_bary_other[k] = bary_o
         c_normal[k] = normal
-        c_depth[k] = depth
+        # The anchors' approach along N during this substep: C grew by this much since its start.
+        approach = normal.dot((target - self.anchor_world(t_other, bary_o, True))
+                              - (point - self.anchor_world(t_moved, bary_m, True)))
+        c_budget[k] = ti.min(depth, ti.max(approach, 0.0) + max_push)
         c_lambda_n[k] = 0.0
         c_lambda_t[k] = 0.0
         c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, point)
@@ -285,8 +293,8 @@ class XPBDSolver:
         return n
 
     @ti.func
-    def collide_candidates(self, n_candidates: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
-                           c_bary_other: ti.template(), c_normal: ti.template(), c_depth: ti.template(),
+    def collide_candidates(self, n_candidates: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                           c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                            c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
         """The unified narrow phase on the candidate pairs in c_tri, compacted in place into
         contact rows (serial: row n <= candidate k is written after k is read); returns the count."""
@@ -302,8 +310,8 @@ class XPBDSolver:
                 if side == 1:
                     t_m, t_o = ab[1], ab[0]
                 if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
-                    self.write_contact(n, t_m, t_o, depth, normal, point, c_tri, c_bary_moved, c_bary_other,
-                                       c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
+                    self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
+                                       c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                     n += 1
         return n
 
@@ -332,15 +340,17 @@ class XPBDSolver:
 
     @ti.func
     def solve_contact_normal(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
-                             c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template()):
+                             c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                             c_lambda_n: ti.template()):
         """Project contact k: C = N·(p_other − p_moved) ≥ 0 with Δλ = C/(w_moved + w_other),
-        w the generalised inverse masses along N (Müller 2020, Eq. 2-9 with α = 0)."""
+        w the generalised inverse masses along N (Müller 2020, Eq. 2-9 with α = 0), within
+        what is left of the contact's correction budget (m)."""
         tri = c_tri[k]
         bm, bo = c_bary_moved[k], c_bary_other[k]
         n = c_normal[k]
         p_m = self.anchor_world(tri[0], bm, False)
         p_o = self.anchor_world(tri[1], bo, False)
-        c = n.dot(p_o - p_m)
+        c = ti.min(n.dot(p_o - p_m), c_budget[k])
         if c > 0.0:
             w = self.anchor_inv_mass(tri[0], bm, p_m, n) + self.anchor_inv_mass(tri[1], bo, p_o, n)
             if w > 0.0:
@@ -348,6 +358,7 @@ class XPBDSolver:
                 self.anchor_move(tri[0], bm, p_m, dl * n)
                 self.anchor_move(tri[1], bo, p_o, -dl * n)
                 c_lambda_n[k] += dl
+                c_budget[k] -= c
 
     @ti.func
     def solve_contact_friction(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
@@ -534,7 +545,7 @@ class XPBDSolver:
     @ti.func
     def project(self, n_contacts: ti.i32, iterations: ti.i32, h: float, c_tri: ti.template(),
                 c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
-                c_lambda_n: ti.template(), c_lambda_t: ti.template()):
+                c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template()):
         """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial loop)."""
         if ti.static(self.model.has_soft):
             for e in range(ti.static(self.model.n_edges)):
@@ -549,7 +560,7 @@ class XPBDSolver:
             # direction so that no contact is always last.
             for j in range(n_contacts):
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
-                self.solve_contact_normal(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n)
+                self.solve_contact_normal(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n)
             for j in range(n_contacts):
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
                 self.solve_contact_friction(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
@@ -560,7 +571,7 @@ class XPBDSolver:
                          bound: float, c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                         c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_depth: ti.types.ndarray(ndim=1),
+                         c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
                          c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
                          c_vn0: ti.types.ndarray(ndim=1),
                          c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(3, ti.i32):
@@ -584,9 +595,10 @@ class XPBDSolver:
                     self.place_vertex(i)
                 n = self.candidate_pairs(c_tri)
                 most = ti.max(most, n)
-                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), c_tri, c_bary_moved, c_bary_other,
-                                            c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
-                self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n, c_lambda_t)
+                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other,
+                                            c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                             c_lambda_t)
                 for b in range(ti.static(self.model.n_bodies)):
                     self.update_body_velocity(b, h)
                 if ti.static(self.model.has_soft):
@@ -620,7 +632,7 @@ class XPBDSolver:
                      c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
                      c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_depth: ti.types.ndarray(ndim=1),
+                     c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
                      c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
                      c_vn0: ti.types.ndarray(ndim=1),
                      c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(2, ti.i32):
@@ -635,10 +647,11 @@ class XPBDSolver:
                     t_m, t_o = ab[0], ab[1]
                     if side == 1:
                         t_m, t_o = ab[1], ab[0]
-                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], c_tri, c_bary_moved,
-                                       c_bary_other, c_normal, c_depth, c_lambda_n, c_lambda_t, c_vn0)
+                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], DEPENETRATION_SPEED * h, c_tri, c_bary_moved,
+                                       c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                     n += 1
-            self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n, c_lambda_t)
+            self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                         c_lambda_t)
         for b in range(ti.static(self.model.n_bodies)):
             self.update_body_velocity(b, h)
         if ti.static(self.model.has_soft):

@@ -1,0 +1,101 @@
+"""The built-in scenes: Erleben's six contact tests (Erleben 2018, "Methodology for
+assessing mesh-based contact point methods"), their variants and a soft drop.
+
+Each scene is the same table a scene file holds (DESIGN.md §4), so `taichi-dcd run
+spikes` and a TOML copy of it behave alike. Frame dt 0.01 s, gravity (0, −9.8, 0),
+density 1000 kg/m³, friction 0.5; the static body stands on a static ground slab; runs
+stop once every vertex has been slower than 1e-3 m/s for 0.2 s, or after 5 s.
+"""
+
+from __future__ import annotations
+
+from .config import SceneConfig, scene_from_dict
+
+GAP = 1e-4          # m: the dropped tip's or ridge's initial clearance
+SHIFT = 0.01        # m: 1% of the 1 m base width, so that nothing balances
+SLIDE = [1.0, 0.0, 0.0]  # m/s: initial velocity across a hole or crack
+SPIKE_HEIGHT = 3.0
+APEX_DOWN = [180.0, 0.0, 0.0]       # degrees: Rx(180°) turns a spike or wedge (ridge along z) upside down
+RIDGE_DOWN_ACROSS = [180.0, 90.0, 0.0]  # upside down, then the ridge turned to run along x
+
+
+def _sim() -> dict:
+    return {"frame_dt": 0.01, "frames": 500, "stop_when_settled": True}
+
+
+def _ground(top_y: float) -> dict:
+    return {"name": "ground", "kind": "static", "shape": "ground", "position": [0.0, top_y, 0.0]}
+
+
+def _dropped(shape: str, tip_y: float, x: float = 0.0, rotation=APEX_DOWN, velocity=None) -> dict:
+    """A rigid spike or wedge turned tip/ridge down with its tip at (x, tip_y, 0)."""
+    body = {"name": f"dropped_{shape}", "kind": "rigid", "shape": shape, "rotation": list(rotation),
+            "position": [x, tip_y + SPIKE_HEIGHT, 0.0]}
+    if velocity is not None:
+        body["velocity"] = list(velocity)
+    return body
+
+
+def _standing(shape: str, params: dict | None = None) -> dict:
+    """A static spike or wedge, tip/ridge up at y = 0, standing on the ground."""
+    body = {"name": f"static_{shape}", "kind": "static", "shape": shape, "position": [0.0, -SPIKE_HEIGHT, 0.0]}
+    if params:
+        body["params"] = params
+    return body
+
+
+def _block(shape: str, params: dict | None = None) -> dict:
+    body = {"name": shape, "kind": "static", "shape": shape, "position": [0.0, 0.0, 0.0]}
+    if params:
+        body["params"] = params
+    return body
+
+
+# Block tops are at y = 1; the groove's bottom line and the pocket's floor at y = 0.5.
+BOTTOM_Y = 0.5
+
+SCENES: dict[str, tuple[str, dict]] = {
+    "spikes": ("a spike dropped apex down onto a standing spike's apex, 1% off centre", {
+        "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("spike"), _dropped("spike", GAP, SHIFT)]}),
+    "spike-and-wedge": ("a spike dropped apex down onto a standing wedge's ridge, 1% off centre", {
+        "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("wedge"), _dropped("spike", GAP, SHIFT)]}),
+    "wedges": ("a wedge dropped ridge down onto a standing wedge's ridge, ridges parallel, 1% off", {
+        "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("wedge"), _dropped("wedge", GAP, SHIFT)]}),
+    "wedges-crossed": ("a wedge dropped ridge down across a standing wedge's ridge (90°)", {
+        "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("wedge"),
+                                _dropped("wedge", GAP, SHIFT, rotation=RIDGE_DOWN_ACROSS)]}),
+    "spike-in-hole": ("a spike sliding at 1 m/s, apex 0.1 mm above a square pocket's floor", {
+        "sim": _sim(), "body": [_ground(0.0), _block("hole_block"),
+                                _dropped("spike", BOTTOM_Y + GAP, velocity=SLIDE)]}),
+    "spike-in-pit": ("a spike sliding at 1 m/s, apex 0.1 mm above an inverted-pyramid pit's bottom", {
+        "sim": _sim(), "body": [_ground(0.0), _block("hole_block", {"pit": True}),
+                                _dropped("spike", BOTTOM_Y + GAP, velocity=SLIDE)]}),
+    "spike-in-crack": ("a spike sliding at 1 m/s across a V-groove, apex 0.1 mm above its bottom", {
+        "sim": _sim(), "body": [_ground(0.0), _block("crack_block"),
+                                _dropped("spike", BOTTOM_Y + GAP, velocity=SLIDE)]}),
+    "wedge-in-crack": ("a wedge sliding at 1 m/s across a V-groove, ridge parallel, 1 mm above its bottom", {
+        "sim": _sim(), "body": [_ground(0.0), _block("crack_block"),
+                                _dropped("wedge", BOTTOM_Y + 1e-3, velocity=SLIDE)]}),
+    "soft-ball-on-spike": ("a soft ball (radius 0.5, 1,280 triangles) dropped from 1 m onto a spike's apex", {
+        "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("spike"),
+                                {"name": "ball", "kind": "soft", "shape": "icosphere",
+                                 "params": {"radius": 0.5, "subdivisions": 3}, "position": [0.0, 1.5, 0.0]}]}),
+}
+
+# Erleben's six tests, in his order; `taichi-dcd run all` runs these and the variants.
+ERLEBEN_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in-crack", "wedge-in-crack"]
+
+
+def builtin_names() -> list[str]:
+    return list(SCENES)
+
+
+def describe(name: str) -> str:
+    return SCENES[name][0]
+
+
+def builtin_scene(name: str) -> SceneConfig:
+    """The SceneConfig of a built-in scene; KeyError for an unknown name."""
+    import copy
+
+    return scene_from_dict(copy.deepcopy(SCENES[name][1]), name=name, where=f"built-in scene {name!r}")

@@ -1,0 +1,91 @@
+"""The Erleben shapes are closed solids of the stated size, and the independent
+penetration measure (DESIGN.md §5) gives known answers."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from taichi_dcd import shapes
+from taichi_dcd.metrics import pair_penetration, scene_penetration
+from taichi_dcd.scene import rotation_matrix
+
+
+def placed(mesh, rotation=(0.0, 0.0, 0.0), position=(0.0, 0.0, 0.0)):
+    v = np.asarray(mesh.vertices) @ rotation_matrix(rotation).T + np.asarray(position)
+    return trimesh.Trimesh(v, mesh.faces, process=False)
+
+
+@pytest.mark.parametrize("name, params, volume, bounds", [
+    ("spike", {}, 1.0, [[-0.5, 0, -0.5], [0.5, 3, 0.5]]),
+    ("wedge", {}, 3.0, [[-0.5, 0, -1], [0.5, 3, 1]]),
+    ("crack_block", {}, 8.0 - 0.5 * 1.0 * 0.5 * 4.0, [[-1, 0, -2], [1, 1, 2]]),
+    ("hole_block", {}, 4.0 - 0.5, [[-1, 0, -1], [1, 1, 1]]),
+    ("hole_block", {"pit": True}, 4.0 - 0.5 / 3, [[-1, 0, -1], [1, 1, 1]]),
+    ("ground", {"size": [12.0, 1.0, 12.0]}, 144.0, [[-6, -1, -6], [6, 0, 6]]),
+])
+def test_shape_is_a_closed_outward_solid_of_the_stated_size(name, params, volume, bounds):
+    mesh = shapes.make_shape(name, params)
+    welded = trimesh.Trimesh(mesh.vertices, mesh.faces)  # merges duplicate vertices
+    assert len(welded.vertices) == len(mesh.vertices), "duplicate vertices would hide open seams"
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    # Watertight with every edge shared by exactly two faces also rules out T-junctions.
+    assert mesh.volume == pytest.approx(volume, rel=1e-12)
+    np.testing.assert_allclose(mesh.bounds, bounds, atol=1e-12)
+
+
+def test_crack_groove_opens_at_ninety_degrees():
+    mesh = shapes.crack_block()
+    groove = [n for n in mesh.face_normals if abs(n[2]) < 1e-12 and 0 < n[1] < 1 and abs(n[0]) > 1e-12]
+    assert len(groove) == 4
+    left, right = [n for n in groove if n[0] > 0][0], [n for n in groove if n[0] < 0][0]
+    assert math.degrees(math.acos(np.dot(left, right))) == pytest.approx(90.0, abs=1e-9)
+
+
+def test_bad_shape_parameters_are_named():
+    with pytest.raises(ValueError, match="groove"):
+        shapes.crack_block(width=3.0)
+    with pytest.raises(ValueError, match="height must be positive"):
+        shapes.spike(height=0.0)
+    with pytest.raises(ValueError, match="unknown shape"):
+        shapes.make_shape("cone", {})
+
+
+def test_vertex_pushed_into_a_face_gives_its_depth():
+    """A spike's apex 0.01 below a box's top face: depth 0.01, overlap the pyramid tip's
+    volume (a/3 · d)² · d / 3 with the base shrinking 1/3 per unit of depth."""
+    block = placed(shapes.box((2.0, 1.0, 2.0)), position=(0.0, -0.5, 0.0))
+    spike = placed(shapes.spike(), (180.0, 0.0, 0.0), (0.1, 3.0 - 0.01, 0.05))
+    depth, volume = pair_penetration(spike, block)
+    assert depth == pytest.approx(0.01, rel=1e-9)
+    assert volume == pytest.approx((0.01 / 3) ** 2 * 0.01 / 3, rel=1e-6)
+
+
+def test_crossed_ridges_give_the_depth_of_the_ridge_inside_the_other_wedge():
+    """Ridges crossing at 90°, 0.01 deep: no vertex is inside the other body. A ridge point
+    0.01 below the other ridge is d·sin α from that wedge's faces (α = atan(0.5/3), the
+    half-angle at the ridge)."""
+    lower = placed(shapes.wedge(), position=(0.0, -3.0, 0.0))
+    upper = placed(shapes.wedge(), (180.0, 90.0, 0.0), (0.0, 3.0 - 0.01, 0.0))
+    depth, volume = pair_penetration(lower, upper)
+    assert depth == pytest.approx(0.01 * math.sin(math.atan(0.5 / 3.0)), rel=1e-6)
+    assert 0 < volume < 1e-6
+
+
+@pytest.mark.parametrize("gap", [0.0, 1e-9, 1e-3])
+def test_touching_or_separate_bodies_measure_zero(gap):
+    block = placed(shapes.box((2.0, 1.0, 2.0)), position=(0.0, -0.5, 0.0))
+    cube = placed(shapes.box((0.5, 0.5, 0.5)), position=(0.3, 0.25 + gap, -0.2))
+    depth, volume = pair_penetration(cube, block)
+    assert depth < 1e-12 and volume < 1e-15  # zero up to round-off
+
+
+def test_scene_measure_skips_static_pairs_and_names_the_deepest_pair():
+    ground = placed(shapes.ground())
+    block = placed(shapes.box((1.0, 1.0, 1.0)), position=(0.0, 0.5 - 0.2, 0.0))   # static, 0.2 deep
+    cube = placed(shapes.box((0.5, 0.5, 0.5)), position=(0.0, 0.8 + 0.25 - 0.003, 0.0))  # 3 mm into it
+    result = scene_penetration([("ground", "static", ground), ("block", "static", block), ("cube", "rigid", cube)])
+    assert result.pair == ("block", "cube")
+    assert result.depth == pytest.approx(0.003, rel=1e-9)
+    assert result.volume == pytest.approx(0.25 * 0.003, rel=1e-6)
