@@ -49,7 +49,7 @@ class Contacts:
         real = runtime.real_type()
         vec3 = ti.types.vector(3, real)
         self.pair = ti.ndarray(ivec2, shape=capacity)
-        self.budget = ti.ndarray(real, shape=capacity)
+        self.depth = ti.ndarray(real, shape=capacity)
         self.normal = ti.ndarray(vec3, shape=capacity)
         self.side = ti.ndarray(ti.i8, shape=capacity)
         self.point = ti.ndarray(vec3, shape=capacity)
@@ -57,7 +57,7 @@ class Contacts:
 
     @property
     def capacity(self) -> int:
-        return self.budget.shape[0]
+        return self.depth.shape[0]
 
     def grow(self, needed: int) -> None:
         """Reallocate for at least `needed` rows (contents are lost; run the query again)."""
