@@ -62,6 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-frames", action="store_true", help="render no frames (faster)")
     run.add_argument("--gif", action="store_true", help="also write animation.gif")
     run.add_argument("--contacts", action="store_true", help="draw the contact points in the frames")
+    run.add_argument("--force", action="store_true",
+                     help="write into an output folder that holds other files (never overwriting them)")
     run.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser
 
@@ -90,10 +92,13 @@ def _load_config(name: str):
     return read_scene_file(name)
 
 
+INTERRUPTED = 130  # _run_one's status after Ctrl-C; the command line exits 1
+
+
 def _run_one(config, args, out) -> tuple[int, dict | None]:
     from . import runtime
     from .config import SceneError
-    from .run import run_scene
+    from .run import OutputError, run_scene
     from .scene import Scene
 
     try:
@@ -108,12 +113,21 @@ def _run_one(config, args, out) -> tuple[int, dict | None]:
     except (SceneError, RuntimeError) as exc:
         print(f"taichi-dcd: error: {exc}", file=sys.stderr)
         return 2, None
+    for line in scene.warnings:
+        print(f"taichi-dcd: warning: {line}", file=sys.stderr)
     try:
         metrics = run_scene(scene, out, frames=args.frames, progress=None if args.quiet else sys.stderr,
-                            render=not args.no_frames, gif=args.gif, draw_contacts=args.contacts)
+                            render=not args.no_frames, gif=args.gif, draw_contacts=args.contacts,
+                            force=args.force)
+    except OutputError as exc:
+        print(f"taichi-dcd: error: {exc}", file=sys.stderr)
+        return 2, None
+    except OSError as exc:
+        print(f"taichi-dcd: error: cannot write to {out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2, None
     except KeyboardInterrupt:
         print(f"taichi-dcd: interrupted; partial results in {out}", file=sys.stderr)
-        return 1, None
+        return INTERRUPTED, None
     if not metrics["complete"]:
         print(f"taichi-dcd: error: {metrics['error']} (last good state in {out})", file=sys.stderr)
         return 1, metrics
@@ -133,17 +147,27 @@ def _cmd_run(args) -> int:
     if args.scene == "all":
         from .builtin_scenes import builtin_names
 
+        from .run import MANIFEST, write_json_atomic
+
         root = Path(args.out) if args.out else Path("outputs")
+        sheet = root / "contact-sheet.png"
+        if sheet.exists() and not _listed_in_manifest(root / MANIFEST, sheet.name):
+            print(f"taichi-dcd: error: {sheet} was not written by this tool and would be overwritten; "
+                  "choose another --out", file=sys.stderr)
+            return 2
         status, finished = 0, []
         for name in builtin_names():
             code, _ = _run_one(_load_config(name), args, root / name)
+            if code == INTERRUPTED:
+                return 1
             status = max(status, code)
             finished.append(name)
         if not args.no_frames:
             from .render import write_contact_sheet
 
-            write_contact_sheet([(n, root / n / "frames") for n in finished], root / "contact-sheet.png")
-            print(f"contact sheet: {root / 'contact-sheet.png'}")
+            write_json_atomic(root / MANIFEST, {"written_by": "taichi-dcd", "files": [sheet.name]})
+            write_contact_sheet([(n, root / n / "frames") for n in finished], sheet)
+            print(f"contact sheet: {sheet}")
         return status
     try:
         config = _load_config(args.scene)
@@ -151,7 +175,17 @@ def _cmd_run(args) -> int:
         print(f"taichi-dcd: error: {exc}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path("outputs") / config.name
-    return _run_one(config, args, out)[0]
+    code = _run_one(config, args, out)[0]
+    return 1 if code == INTERRUPTED else code
+
+
+def _listed_in_manifest(manifest, name: str) -> bool:
+    import json
+
+    try:
+        return name in json.loads(manifest.read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
 
 
 def _cmd_list(args) -> int:
@@ -190,6 +224,17 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
     parser = build_parser()
     args = parser.parse_args(argv)
+    try:
+        return _dispatch(parser, args)
+    except Exception as exc:  # noqa: BLE001 — a command line tool answers in one line, not a traceback
+        if os.environ.get("TAICHI_DCD_TRACEBACK"):
+            raise
+        print(f"taichi-dcd: error: internal error, please report it (set TAICHI_DCD_TRACEBACK=1 for details): "
+              f"{type(exc).__name__}: {exc}".replace("\n", " "), file=sys.stderr)
+        return 1
+
+
+def _dispatch(parser, args) -> int:
     if args.command is None:
         parser.print_help()
         return 0

@@ -60,6 +60,7 @@ class SceneConfig:
     sim: SimConfig
     bodies: list[BodyConfig]
     base_dir: Path = Path(".")
+    source: str = "scene"  # the scene file (or built-in name), named in error messages
 
 
 _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "iterations": "count",
@@ -145,7 +146,7 @@ def scene_from_dict(data: dict, name: str, base_dir: Path = Path("."), where: st
         if any(b.name == values["name"] for b in bodies):
             raise SceneError(f"{where}: duplicate body name {values['name']!r}")
         bodies.append(BodyConfig(**values))
-    return SceneConfig(name=name, sim=sim, bodies=bodies, base_dir=base_dir)
+    return SceneConfig(name=name, sim=sim, bodies=bodies, base_dir=base_dir, source=where)
 
 
 def read_scene_file(path) -> SceneConfig:

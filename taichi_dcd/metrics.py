@@ -4,9 +4,10 @@ For closed bodies A and B the overlap is the solid I = A ∩ B (manifold3d, in d
 precision). Its boundary is made of A's surface inside B and B's surface inside A, so
 A's deepest point inside B, measured as its distance to B's surface, lies on I's
 boundary, and so does B's deepest point inside A. The pair's depth is the largest
-distance, to the other body's surface, of a point of I's boundary: I's vertices, points
-along its edges and a barycentric grid on its faces (the grid spacing bounds how much a
-depth inside a face can be underestimated; vertices and edges are exact). The scene's
+distance, to the other body's surface, of a point of I's boundary: I's vertices and a
+barycentric grid on its faces, the deepest grid points refined on finer local grids.
+Depths at vertices are exact; elsewhere the search can only underestimate, by at most
+the final local spacing where the deepest point is found. The scene's
 depth is the largest over pairs of bodies that are not both static.
 """
 
@@ -17,8 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-# Points per edge and per face side of the overlap's sampling grid (at most).
-EDGE_SAMPLES = 32
+# The overlap's sampling grid: its box diagonal / EDGE_SAMPLES apart (at most this many per edge).
+EDGE_SAMPLES = 16
+# Deepest grid points refined locally (pair_penetration).
+REFINE_POINTS = 8
 
 
 @dataclass
@@ -56,64 +59,100 @@ def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh) -> tuple[np.ndarray, np.ndar
     return v, f, max(float(solid.volume()), 0.0)
 
 
-def surface_samples(vertices: np.ndarray, faces: np.ndarray, per_edge: int = EDGE_SAMPLES) -> np.ndarray:
-    """Points on a triangle mesh: its vertices, points along its edges and a barycentric
-    grid on its faces, with spacing = (longest edge of the mesh) / per_edge."""
+def surface_samples(vertices: np.ndarray, faces: np.ndarray,
+                    per_edge: int = EDGE_SAMPLES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points on a triangle mesh: its vertices and, on each face, a barycentric grid (which
+    includes points along its edges) with spacing about (the mesh's box diagonal) / per_edge.
+    Returns (points (k, 3), face (k,) int, -1 for the vertices, barycentric step (k,))."""
     if len(faces) == 0:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0)
     tri = vertices[faces]
-    longest = float(np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2)))
-    points = [vertices]
-    for f in range(len(faces)):
-        t = tri[f]
-        size = float(np.max(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1)))
-        n = int(np.clip(np.ceil(per_edge * size / longest), 1, per_edge)) if longest > 0 else 1
+    spacing = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0))) / per_edge
+    size = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    steps = np.clip(np.ceil(size / spacing), 1, per_edge).astype(int) if spacing > 0 else np.ones(len(tri), int)
+    points, face, step = [vertices], [np.full(len(vertices), -1)], [np.zeros(len(vertices))]
+    for n in np.unique(steps):
+        if n == 1:
+            continue  # the vertices already are the grid
+        ids = np.flatnonzero(steps == n)
         i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
         keep = i + j <= n
-        u, v = i[keep] / n, j[keep] / n
-        points.append(t[0] + u[:, None] * (t[1] - t[0]) + v[:, None] * (t[2] - t[0]))
-    return np.concatenate(points)
+        uv = np.stack([i[keep] / n, j[keep] / n], axis=1)
+        points.append(_on_faces(tri[ids], uv).reshape(-1, 3))
+        face.append(np.repeat(ids, len(uv)))
+        step.append(np.full(len(ids) * len(uv), 1.0 / n))
+    return np.concatenate(points), np.concatenate(face), np.concatenate(step)
 
 
-def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 200_000) -> np.ndarray:
-    """Unsigned distance (m) of each point (n, 3) to the mesh's surface (brute force over the
-    triangles near the points' box)."""
+def _on_faces(tri: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Points (f, k, 3) at barycentric (u, v) (k, 2) on each triangle (f, 3, 3)."""
+    u, v = uv[None, :, 0:1], uv[None, :, 1:2]
+    return tri[:, None, 0] + u * (tri[:, None, 1] - tri[:, None, 0]) + v * (tri[:, None, 2] - tri[:, None, 0])
+
+
+def _barycentric_uv(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(u, v) of point p on triangle tri (3, 3), p = t0 + u (t1 − t0) + v (t2 − t0)."""
+    e1, e2, d = tri[1] - tri[0], tri[2] - tri[0], p - tri[0]
+    m = np.array([[e1 @ e1, e1 @ e2], [e1 @ e2, e2 @ e2]])
+    return np.linalg.solve(m, np.array([d @ e1, d @ e2]))
+
+
+def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 4_000_000) -> np.ndarray:
+    """Unsigned distance (m) of each point (n, 3) to the mesh's surface, exactly: each
+    triangle t lies within the sphere (c_t, r_t) around its centroid, so |p − c_t| + r_t
+    bounds p's distance from above and |p − c_t| − r_t from below; only the triangles whose
+    lower bound does not exceed the smallest upper bound are measured."""
     if len(points) == 0:
         return np.zeros(0)
     tris = np.asarray(mesh.triangles)
-    # Only triangles within reach matter: any point's distance is at most its distance to
-    # the nearest vertex, so drop triangles whose box is further than the largest such bound.
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    vertex_bound = np.sqrt(np.min(((points[:, None, :] - _subsample(np.asarray(mesh.vertices), 64)[None]) ** 2)
-                                  .sum(axis=2), axis=1)).max()
-    t_lo, t_hi = tris.min(axis=1), tris.max(axis=1)
-    near = np.all((t_lo <= hi + vertex_bound) & (t_hi >= lo - vertex_bound), axis=1)
-    tris = tris[near]
+    centre = tris.mean(axis=1)
+    radius = np.linalg.norm(tris - centre[:, None, :], axis=2).max(axis=1)
     best = np.full(len(points), np.inf)
     step = max(1, chunk // max(len(tris), 1))
     for start in range(0, len(points), step):
         p = points[start:start + step]
-        pp = np.repeat(p, len(tris), axis=0)
-        tt = np.tile(tris, (len(p), 1, 1))
-        closest = trimesh.triangles.closest_point(tt, pp)
-        d = np.linalg.norm(closest - pp, axis=1).reshape(len(p), len(tris))
-        best[start:start + step] = d.min(axis=1)
+        to_centre = np.linalg.norm(p[:, None, :] - centre[None], axis=2)
+        upper = (to_centre + radius[None]).min(axis=1)
+        rows, cols = np.nonzero(to_centre - radius[None] <= upper[:, None])
+        closest = trimesh.triangles.closest_point(tris[cols], p[rows])
+        d = np.linalg.norm(closest - p[rows], axis=1)
+        out = np.full(len(p), np.inf)
+        np.minimum.at(out, rows, d)
+        best[start:start + step] = out
     return best
 
 
-def _subsample(v: np.ndarray, n: int) -> np.ndarray:
-    return v if len(v) <= n else v[np.linspace(0, len(v) - 1, n).astype(int)]
-
-
-def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh) -> tuple[float, float]:
-    """(depth m, overlap volume m³) of two closed meshes, as in the module docstring."""
+def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFINE_POINTS) -> tuple[float, float]:
+    """(depth m, overlap volume m³) of two closed meshes, as in the module docstring. The
+    grid's `refine` deepest face points are then refined twice on an 8× finer local grid,
+    so that a deepest point between grid points (a ridge crossing) is found to ~1/64 of
+    the grid spacing."""
     v, f, volume = overlap(a, b)
     if len(f) == 0:
         return 0.0, 0.0
-    points = surface_samples(v, f)
-    depth = np.maximum(distance_to_surface(points, a), distance_to_surface(points, b))
-    # A point of I's boundary is on one surface (distance ~0 to it) and at `depth` from the other.
-    return float(depth.max()), volume
+
+    def depth_at(points):
+        # A point of I's boundary is on one surface (distance ~0 to it) and `depth` from the other.
+        return np.maximum(distance_to_surface(points, a), distance_to_surface(points, b))
+
+    points, face, step = surface_samples(v, f)
+    depth = depth_at(points)
+    best = float(depth.max())
+    tri = v[f]
+    for k in np.argsort(depth)[::-1][:refine]:
+        if face[k] < 0:
+            continue
+        centre, h = _barycentric_uv(tri[face[k]], points[k]), step[k]
+        for _ in range(2):
+            offsets = np.linspace(-h, h, 9)
+            uv = (centre[None] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), -1).reshape(-1, 2))
+            uv = uv[(uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv.sum(axis=1) <= 1)]
+            if len(uv) == 0:
+                break
+            d = depth_at(_on_faces(tri[face[k]][None], uv)[0])
+            best = max(best, float(d.max()))
+            centre, h = uv[int(np.argmax(d))], h / 8
+    return best, volume
 
 
 def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetration:

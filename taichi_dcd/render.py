@@ -9,6 +9,7 @@ bytes.
 
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -245,4 +246,6 @@ def write_contact_sheet(entries, path, columns: int = 3, tile=(400, 300)) -> Non
     sheet = Image.new("RGB", (columns * tile[0], rows * tile[1]), BACKGROUND)
     for k, image in enumerate(tiles):
         sheet.paste(image, ((k % columns) * tile[0], (k // columns) * tile[1]))
-    sheet.save(path, format="PNG")
+    path = Path(path)
+    sheet.save(path.with_name(path.name + ".tmp"), format="PNG")
+    os.replace(path.with_name(path.name + ".tmp"), path)

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from . import runtime
 from .config import SETTLE_SPEED, SETTLE_TIME
@@ -23,6 +24,56 @@ def write_json_atomic(path: Path, data: dict) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     os.replace(tmp, path)
+
+
+MANIFEST = ".taichi-dcd-run.json"   # the files a run wrote, so that a re-run replaces only those
+FRAME_PATTERN = "frame_[0-9][0-9][0-9][0-9][0-9].png"
+
+
+class OutputError(ValueError):
+    """The output folder cannot be used without losing files the run did not write."""
+
+
+def run_files(body_names: list[str]) -> list[str]:
+    """The files a run writes besides its frames, relative to the output folder."""
+    return ["metrics.json", "metrics.csv", "animation.gif"] + [f"final/{n}.obj" for n in body_names]
+
+
+def _files_of_earlier_run(out: Path) -> set[Path]:
+    """Files in `out` that an earlier run recorded as its own (with their .tmp siblings)."""
+    try:
+        listed = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    ours = {out / name for name in listed if isinstance(name, str)}
+    ours |= set((out / "frames").glob(FRAME_PATTERN))
+    ours |= {p.with_name(p.name + ".tmp") for p in list(ours)}
+    return ours
+
+
+def prepare_output(out: Path, body_names: list[str], force: bool = False) -> None:
+    """Make `out` ready for a run: create it, or reuse an earlier run's folder after deleting
+    that run's files (and only those). A folder holding anything else is refused unless
+    `force`; even then a file of someone else's with a name the run writes is never
+    overwritten. Raises OutputError naming the folder or the file."""
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output folder {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    ours = _files_of_earlier_run(out)
+    present = {p for p in out.rglob("*") if p.is_file() or p.is_symlink()}
+    foreign = sorted(present - ours - {out / MANIFEST})
+    if foreign and not force:
+        raise OutputError(f"output folder {out} holds files this tool did not write (e.g. "
+                          f"{foreign[0].relative_to(out)}); choose another --out or pass --force")
+    ours_next = {out / name for name in run_files(body_names)}
+    clash = [p for p in foreign if p in ours_next or (p.parent == out / "frames" and p.match(FRAME_PATTERN))]
+    if clash:
+        raise OutputError(f"{clash[0]} was not written by this tool and would be overwritten; "
+                          "choose another --out")
+    for p in ours & present:
+        p.unlink()
+    write_json_atomic(out / MANIFEST, {"written_by": "taichi-dcd", "files": run_files(body_names),
+                                       "frames": f"frames/{FRAME_PATTERN}"})
 
 
 class FrameWriter:
@@ -56,7 +107,9 @@ class FrameWriter:
 
         points = self.scene.contact_points() if self.contacts else None
         image = self.rasterizer.render(self.scene.vertices(), self.faces, self.face_rgb, self.camera, points)
-        write_png(self.dir / f"frame_{self.count:05d}.png", image)
+        path = self.dir / f"frame_{self.count:05d}.png"
+        write_png(path.with_name(path.name + ".tmp"), image)  # an interrupt never leaves half a PNG
+        os.replace(path.with_name(path.name + ".tmp"), path)
         if self.gif_frames is not None and self.count % GIF_EVERY == 0:
             self.gif_frames.append(image[::2, ::2].copy())
         self.count += 1
@@ -80,15 +133,18 @@ CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", 
 
 
 def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.stderr, render: bool = False,
-              gif: bool = False, draw_contacts: bool = False) -> dict:
+              gif: bool = False, draw_contacts: bool = False, force: bool = False, notices=sys.stderr) -> dict:
     """Simulate `frames` frames (default: the scene's; fewer once settled if the scene's
     sim.stop_when_settled) and write the run's files into out_dir (DESIGN.md §4):
     final/<body>.obj, metrics.csv (one row per frame), metrics.json, and with `render`
     frames/frame_NNNNN.png (frame 0 = the initial state), with `gif` animation.gif.
     Penetration is measured every frame from the meshes alone (metrics.py). Returns the
     metrics. A failed run (NaN, explosion) or an interrupt still writes metrics.json, with
-    "complete": false and the reason."""
+    "complete": false and the reason, and final meshes of the last good frame. The folder is
+    checked first (prepare_output: OutputError); contact buffer growth is reported on
+    `notices` when it happens."""
     out = Path(out_dir)
+    prepare_output(out, scene.body_names, force)
     (out / "final").mkdir(parents=True, exist_ok=True)
     sim = scene.config.sim
     frames = sim.frames if frames is None else int(frames)
@@ -96,7 +152,9 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     if writer:
         writer.write()
     moving = scene.moving_vertex_mask()
-    x_prev = scene.vertices()[moving]
+    last_good = scene.vertices()
+    x_prev = last_good[moving]
+    growths = scene.solver.contact_growths
     rows = []
     error = None
     interrupted = False
@@ -110,9 +168,17 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     try:
         for f in range(frames):
             t0 = time.perf_counter()
-            contacts = scene.step(1)
+            try:
+                contacts = scene.step(1)
+            except SimulationError as exc:
+                raise SimulationError(f"frame {f + 1}: {exc}") from None
             step_times.append(time.perf_counter() - t0)
-            x = scene.vertices()[moving]
+            if scene.solver.contact_growths != growths and notices is not None:
+                growths = scene.solver.contact_growths
+                print(f"taichi-dcd: frame {f + 1}: contact buffer grown to {scene.solver.contacts.capacity} rows "
+                      "(the frame was rerun)", file=notices, flush=True)
+            last_good = scene.vertices()
+            x = last_good[moving]
             speed = float(np.max(np.linalg.norm(x - x_prev, axis=1)) / sim.frame_dt) if len(x) else 0.0
             x_prev = x
             pen = scene.penetration()
@@ -144,12 +210,14 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     # without the rendering and penetration measurement around the steps.
     first_frame = first_frame_end - start if first_frame_end else wall
     steady_time = sim.frame_dt * (len(step_times) - 1)
-    with open(out / "metrics.csv", "w", newline="", encoding="utf-8") as fh:
+    with open(out / "metrics.csv.tmp", "w", newline="", encoding="utf-8") as fh:
         csv_writer = csv.writer(fh)
         csv_writer.writerow(CSV_COLUMNS)
         csv_writer.writerows(rows)
-    for name in scene.body_names:
-        scene.body_mesh(name).export(out / "final" / f"{name}.obj")
+    os.replace(out / "metrics.csv.tmp", out / "metrics.csv")
+    for b in scene.model.bodies:
+        mesh = trimesh.Trimesh(last_good[b.vertex_start:b.vertex_start + b.vertex_count], b.faces, process=False)
+        mesh.export(out / "final" / f"{b.name}.obj")
     if writer and gif:
         writer.write_gif(out / "animation.gif", sim.frame_dt)
     final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0, 0.0)

@@ -37,17 +37,21 @@ def body_mesh(body, base_dir: Path) -> trimesh.Trimesh:
             raise SceneError(f"body {body.name!r}: mesh file {path} does not exist")
         try:
             mesh = trimesh.load(path, force="mesh", process=False)
+        except IndexError as exc:
+            raise SceneError(f"body {body.name!r}: mesh file {path}: a face refers to a vertex that does not "
+                             f"exist ({exc})") from None
         except Exception as exc:  # trimesh raises many types for unparsable files
             raise SceneError(f"body {body.name!r}: cannot read mesh file {path} ({exc})") from None
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise SceneError(f"body {body.name!r}: mesh file {path} holds no triangles")
+            raise SceneError(f"body {body.name!r}: mesh file {path} holds no triangles (empty or not a mesh)")
     else:
         try:
             mesh = make_shape(body.shape, body.params)
         except ValueError as exc:
             raise SceneError(f"body {body.name!r}: {exc}") from None
     v = np.asarray(mesh.vertices, np.float64) * body.scale
-    v = v @ rotation_matrix(body.rotation).T + np.asarray(body.position)
+    with np.errstate(invalid="ignore"):
+        v = v @ rotation_matrix(body.rotation).T + np.asarray(body.position)
     return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
 
 
@@ -61,14 +65,16 @@ class Scene:
         self.config = config
         builder = ModelBuilder()
         for body in config.bodies:
-            mesh = body_mesh(body, config.base_dir)
             try:
+                mesh = body_mesh(body, config.base_dir)
                 builder.add_body(BodySpec(
                     name=body.name, vertices=mesh.vertices, faces=mesh.faces, kind=body.kind,
                     density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
-                    restitution=body.restitution, compliance=body.compliance))
-            except ValueError as exc:
-                raise SceneError(str(exc)) from None
+                    restitution=body.restitution, compliance=body.compliance,
+                    source=str(config.base_dir / body.mesh) if body.mesh else None))
+            except ValueError as exc:  # SceneError included
+                raise SceneError(f"{config.source}: {exc}") from None
+        self.warnings = builder.warnings  # one line per mesh repair
         self.model, self.state = builder.finalize()
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase)
         self.frame = 0

@@ -89,3 +89,20 @@ def test_scene_measure_skips_static_pairs_and_names_the_deepest_pair():
     assert result.pair == ("block", "cube")
     assert result.depth == pytest.approx(0.003, rel=1e-9)
     assert result.volume == pytest.approx(0.25 * 0.003, rel=1e-6)
+
+
+def test_pruned_distance_equals_brute_force_on_seeded_points():
+    """distance_to_surface skips triangles by bounding spheres; it must equal the distance
+    to every triangle, on points inside, outside and on a deformed ball."""
+    from taichi_dcd.metrics import distance_to_surface
+
+    rng = np.random.default_rng(7)
+    ball = shapes.icosphere(0.5, 2)
+    ball = trimesh.Trimesh(np.asarray(ball.vertices) * (1 + 0.1 * rng.random((len(ball.vertices), 1))), ball.faces,
+                           process=False)
+    points = np.concatenate([rng.normal(size=(200, 3)) * 0.3, rng.normal(size=(100, 3)) * 2.0,
+                             np.asarray(ball.vertices)[:50]])
+    tris = np.asarray(ball.triangles)
+    brute = np.array([np.linalg.norm(trimesh.triangles.closest_point(tris, np.repeat(p[None], len(tris), 0)) - p,
+                                     axis=1).min() for p in points])
+    np.testing.assert_allclose(distance_to_surface(points, ball), brute, rtol=0, atol=1e-12)
