@@ -90,11 +90,15 @@ def _on_faces(tri: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return tri[:, None, 0] + u * (tri[:, None, 1] - tri[:, None, 0]) + v * (tri[:, None, 2] - tri[:, None, 0])
 
 
-def _barycentric_uv(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """(u, v) of point p on triangle tri (3, 3), p = t0 + u (t1 − t0) + v (t2 − t0)."""
+def _barycentric_uv(tri: np.ndarray, p: np.ndarray) -> np.ndarray | None:
+    """(u, v) of point p on triangle tri (3, 3), p = t0 + u (t1 − t0) + v (t2 − t0); None
+    for a degenerate triangle."""
     e1, e2, d = tri[1] - tri[0], tri[2] - tri[0], p - tri[0]
     m = np.array([[e1 @ e1, e1 @ e2], [e1 @ e2, e2 @ e2]])
-    return np.linalg.solve(m, np.array([d @ e1, d @ e2]))
+    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+    if not det > 1e-24 * (m[0, 0] * m[1, 1]) or not det > 0:
+        return None  # a sliver face of the overlap: nothing to refine on
+    return np.array([m[1, 1] * (d @ e1) - m[0, 1] * (d @ e2), m[0, 0] * (d @ e2) - m[0, 1] * (d @ e1)]) / det
 
 
 def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 4_000_000) -> np.ndarray:
@@ -143,6 +147,8 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
         if face[k] < 0:
             continue
         centre, h = _barycentric_uv(tri[face[k]], points[k]), step[k]
+        if centre is None:
+            continue
         for _ in range(2):
             offsets = np.linspace(-h, h, 9)
             uv = (centre[None] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), -1).reshape(-1, 2))

@@ -54,6 +54,8 @@ DEDUP_MAX_ROWS = 4096
 # measured along a poor normal at a degenerate feature) is undone at most this fast (m/s):
 # pushing it out in one substep turns it into a launch velocity of depth/h.
 DEPENETRATION_SPEED = 0.2
+# Contact rows a triangle pair can need: its deepest point and up to three more vertices.
+VERTEX_ROWS_PER_PAIR = 4
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
 
@@ -243,7 +245,8 @@ class XPBDSolver:
                       c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()):
         """Row k: the moved triangle's deepest point and the point C·N further on, on the
         other triangle, as barycentric anchors (Eq. 6 with −∇C = N). Its correction budget
-        is the depth the substep's own motion made, plus `max_push` (m) of older depth."""
+        (m) is the depth the substep's own motion made plus `max_push` of older depth, and
+        no more than C itself unless the point is a vertex over the other triangle."""
         im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
         bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
         target = point + depth * normal
@@ -255,7 +258,15 @@ class XPBDSolver:
         # The anchors' approach along N during this substep: C grew by this much since its start.
         approach = normal.dot((target - self.anchor_world(t_other, bary_o, True))
                               - (point - self.anchor_world(t_moved, bary_m, True)))
-        c_budget[k] = ti.min(depth, ti.max(approach, 0.0) + max_push)
+        c_budget[k] = ti.max(approach, 0.0) + max_push
+        # A vertex of the moved triangle over the other's face is a plain vertex-face contact,
+        # and may correct more than its detected depth when its neighbours turn the body. Any
+        # other deepest point (an edge crossing, a feature on a boundary) may carry a depth
+        # measured along a poor normal: it corrects at most that depth.
+        tol = ti.static(runtime.tolerance())
+        at_vertex = bary_m.max() >= 1.0 - tol
+        if not (at_vertex and bary_o.min() >= -tol):
+            c_budget[k] = ti.min(depth, c_budget[k])
         c_lambda_n[k] = 0.0
         c_lambda_t[k] = 0.0
         c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, point)
@@ -314,6 +325,39 @@ class XPBDSolver:
                                        c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                     n += 1
         return n
+
+    @ti.func
+    def add_vertex_contacts(self, n: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                            c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                            c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """After the n contacts of the narrow phase: every other vertex of a moved triangle that
+        is one of its candidate points too (behind the other triangle's plane along N, no
+        deeper than the contact's C, projecting inside the other triangle) becomes a contact
+        with its own depth. Eq. 6 keeps only the deepest candidate; a face resting on a face
+        then hangs on one corner per triangle pair and tilts into the support by about one
+        substep of gravity. Rows go after row n-1 while they fit; returns the rows needed."""
+        total = n
+        tol = ti.static(runtime.tolerance())
+        for j in range(n):
+            tri = c_tri[j]
+            normal = c_normal[j]
+            p_m = self.anchor_world(tri[0], c_bary_moved[j], False)
+            p_o = self.anchor_world(tri[1], c_bary_other[j], False)
+            depth_main = normal.dot(p_o - p_m)
+            im, io = self.model.tri_indices[tri[0]], self.model.tri_indices[tri[1]]
+            o0, o1, o2 = self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]]
+            for k in ti.static(range(3)):
+                v = self.state.vertex_x[im[k]]
+                d = normal.dot(o0 - v)
+                if d > 0.0 and d <= depth_main * (1.0 + tol):
+                    w = barycentric(v + d * normal, o0, o1, o2)
+                    if w.min() >= -tol and not self.is_duplicate(ti.min(total, c_tri.shape[0]), tri[0], tri[1], normal,
+                                                                v, c_tri, c_bary_moved, c_normal):
+                        if total < c_tri.shape[0]:
+                            self.write_contact(total, tri[0], tri[1], d, normal, v, max_push, c_tri, c_bary_moved,
+                                               c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                        total += 1
+        return total
 
     @ti.func
     def is_duplicate(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, point: vec3,
@@ -595,8 +639,12 @@ class XPBDSolver:
                     self.place_vertex(i)
                 n = self.candidate_pairs(c_tri)
                 most = ti.max(most, n)
-                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other,
-                                            c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), DEPENETRATION_SPEED * h, c_tri, c_bary_moved,
+                                            c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                needed = self.add_vertex_contacts(n, DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other,
+                                                  c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                most = ti.max(most, needed)
+                n = ti.min(needed, c_tri.shape[0])
                 self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                              c_lambda_t)
                 for b in range(ti.static(self.model.n_bodies)):
@@ -647,9 +695,13 @@ class XPBDSolver:
                     t_m, t_o = ab[0], ab[1]
                     if side == 1:
                         t_m, t_o = ab[1], ab[0]
-                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], DEPENETRATION_SPEED * h, c_tri, c_bary_moved,
-                                       c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], DEPENETRATION_SPEED * h,
+                                       c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                       c_vn0)
                     n += 1
+            # The buffer holds 4 rows per pair (_step_grid), so every vertex contact fits.
+            n = self.add_vertex_contacts(n, DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                         c_budget, c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                          c_lambda_t)
         for b in range(ti.static(self.model.n_bodies)):
@@ -705,8 +757,8 @@ class XPBDSolver:
             self._begin_substep(h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
             self.pipeline.run(self.vertex_nd)
             pc = self.pipeline.contacts
-            if pc.count > self.contacts.capacity:
-                self.contacts.grow(pc.count)
+            if VERTEX_ROWS_PER_PAIR * pc.count > self.contacts.capacity:
+                self.contacts.grow(VERTEX_ROWS_PER_PAIR * pc.count)
                 self.contact_growths += 1
             n, status = (int(v) for v in self._end_substep(
                 iterations, h, g_norm, self.bound, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,

@@ -11,7 +11,7 @@ import pytest
 
 from taichi_dcd.cli import main
 
-PASSING = ["spike-in-hole", "spike-in-pit", "spike-in-crack"]
+PASSING = ["spike-and-wedge", "wedges", "spike-in-hole", "spike-in-pit", "spike-in-crack"]
 
 
 @pytest.mark.parametrize("name", PASSING)
@@ -23,8 +23,8 @@ def test_scene_settles_without_penetrating(f64, name, tmp_path, capsys):
     assert metrics["final_penetration_depth"] <= 1e-4
     assert metrics["final_overlap_volume"] <= 1e-9
     assert metrics["max_penetration_depth"] <= 5e-3
-    assert metrics["settings"]["substeps"] == 10 and metrics["settings"]["iterations"] == 8
-    assert (tmp_path / "final" / "dropped_spike.obj").is_file()
+    assert metrics["settings"]["substeps"] == 10 and metrics["settings"]["iterations"] == 16
+    assert (tmp_path / "final" / f"dropped_{'wedge' if name == 'wedges' else 'spike'}.obj").is_file()
     assert "settled" in capsys.readouterr().out
 
 
