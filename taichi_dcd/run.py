@@ -77,8 +77,9 @@ def prepare_output(out: Path, body_names: list[str], force: bool = False) -> Non
 
 
 class FrameWriter:
-    """Renders the scene's frames to frames/frame_NNNNN.png with a camera fixed at the start
-    (framing every body but static ones much larger than the moving ones, such as a ground)."""
+    """Renders the scene's frames to frames/frame_NNNNN.png with a camera fixed at the start,
+    framing every body but static ones much larger than the moving ones (a ground), widened
+    on x and z by the largest moving body's size so that a toppled body stays in view."""
 
     def __init__(self, scene: Scene, out: Path, width: int = 800, height: int = 600, contacts: bool = False,
                  gif: bool = False):
@@ -98,7 +99,11 @@ class FrameWriter:
         reach = max(float(np.linalg.norm(hi - lo)) for lo, hi in moving)
         framed = [bx for bx, b in zip(boxes, bodies)
                   if b.kind != "static" or np.linalg.norm(bx[1] - bx[0]) <= 3.0 * reach]
-        self.camera = framing_camera(np.min([lo for lo, _ in framed], axis=0), np.max([hi for _, hi in framed], axis=0))
+        lo, hi = np.min([lo for lo, _ in framed], axis=0), np.max([hi for _, hi in framed], axis=0)
+        # A body that topples lands up to its own size away: keep that ring in view.
+        size = max(float(np.max(bx[1] - bx[0])) for bx in moving)
+        ring = np.array([size, 0.0, size])
+        self.camera = framing_camera(lo - ring, hi + ring)
         self.gif_frames = [] if gif else None
         self.count = 0
 
