@@ -147,11 +147,11 @@ def _cmd_run(args) -> int:
     if args.scene == "all":
         from .builtin_scenes import builtin_names
 
-        from .run import MANIFEST, write_json_atomic
+        from .run import MANIFEST, manifest_files, write_json_atomic
 
         root = Path(args.out) if args.out else Path("outputs")
         sheet = root / "contact-sheet.png"
-        if sheet.exists() and not _listed_in_manifest(root / MANIFEST, sheet.name):
+        if sheet.exists() and sheet.name not in manifest_files(root):
             print(f"taichi-dcd: error: {sheet} was not written by this tool and would be overwritten; "
                   "choose another --out", file=sys.stderr)
             return 2
@@ -178,14 +178,6 @@ def _cmd_run(args) -> int:
     code = _run_one(config, args, out)[0]
     return 1 if code == INTERRUPTED else code
 
-
-def _listed_in_manifest(manifest, name: str) -> bool:
-    import json
-
-    try:
-        return name in json.loads(manifest.read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
 
 
 def _cmd_list(args) -> int:

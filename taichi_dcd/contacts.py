@@ -35,15 +35,30 @@ class ContactArrays:
         return len(self.depth)
 
 
-class Contacts:
-    """Fixed-capacity contact buffer (Taichi ndarrays) with a counter."""
+class _GrowableBuffer:
+    """Taichi ndarrays of `capacity` rows, allocated by the subclass's `_allocate`."""
 
     def __init__(self, capacity: int = 1024):
         if capacity < 1:
             raise ValueError(f"contact capacity must be at least 1, got {capacity}")
         runtime.ensure_init()
-        self.count = 0
+        self._resize(capacity)
+
+    def _resize(self, capacity: int) -> None:
+        self.capacity = capacity
         self._allocate(capacity)
+
+    def grow(self, needed: int) -> None:
+        """Reallocate for at least `needed` rows (contents are lost: run the query or frame again)."""
+        self._resize(max(needed, 2 * self.capacity))
+
+
+class Contacts(_GrowableBuffer):
+    """Fixed-capacity contact buffer (Taichi ndarrays) with a counter."""
+
+    def __init__(self, capacity: int = 1024):
+        super().__init__(capacity)
+        self.count = 0
 
     def _allocate(self, capacity: int) -> None:
         real = runtime.real_type()
@@ -54,14 +69,6 @@ class Contacts:
         self.side = ti.ndarray(ti.i8, shape=capacity)
         self.point = ti.ndarray(vec3, shape=capacity)
         self.counter = ti.ndarray(ti.i32, shape=1)
-
-    @property
-    def capacity(self) -> int:
-        return self.depth.shape[0]
-
-    def grow(self, needed: int) -> None:
-        """Reallocate for at least `needed` rows (contents are lost; run the query again)."""
-        self._allocate(max(needed, 2 * self.capacity))
 
     def to_numpy(self) -> ContactArrays:
         n = self.count
@@ -74,7 +81,7 @@ class Contacts:
         )
 
 
-class ContactConstraints:
+class ContactConstraints(_GrowableBuffer):
     """The solver's contact constraints of one substep (Taichi ndarrays, fixed capacity).
 
     Row k ties a point of the moved triangle `tri[k][0]` (barycentric weights
@@ -86,13 +93,6 @@ class ContactConstraints:
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s).
     """
-
-    def __init__(self, capacity: int = 1024):
-        if capacity < 1:
-            raise ValueError(f"contact capacity must be at least 1, got {capacity}")
-        runtime.ensure_init()
-        self.count = 0
-        self._allocate(capacity)
 
     def _allocate(self, capacity: int) -> None:
         real = runtime.real_type()
@@ -106,14 +106,6 @@ class ContactConstraints:
         self.lambda_t = ti.ndarray(real, shape=capacity)
         self.vn0 = ti.ndarray(real, shape=capacity)
         self.impulse_t = ti.ndarray(vec3, shape=capacity)
-
-    @property
-    def capacity(self) -> int:
-        return self.budget.shape[0]
-
-    def grow(self, needed: int) -> None:
-        """Reallocate for at least `needed` rows (contents are lost)."""
-        self._allocate(max(needed, 2 * self.capacity))
 
     def arrays(self) -> tuple:
         """The ndarrays in the order the solver's kernels take them."""

@@ -83,6 +83,10 @@ class Rasterizer:
             raise ValueError(f"image size must be positive, got {width} x {height}")
         self.width, self.height = int(width), int(height)
         self.key = ti.field(ti.i64, shape=(self.height, self.width))
+        self.image = ti.ndarray(ti.types.vector(3, ti.u8), shape=(self.height, self.width))
+        # Per-triangle inputs, reallocated only when a frame has more triangles than they hold.
+        self.screen = ti.ndarray(ti.math.vec3, shape=3)
+        self.colors = ti.ndarray(ti.types.vector(3, ti.u8), shape=1)
 
     @ti.kernel
     def _clear(self):
@@ -132,18 +136,25 @@ class Rasterizer:
                                       np.asarray(face_rgb, np.float64), camera, self.width, self.height)
         self._clear()
         if len(tris):
-            screen = ti.ndarray(ti.math.vec3, shape=3 * len(tris))
-            screen.from_numpy(tris.reshape(-1, 3).astype(np.float32))
-            self._raster(len(tris), screen)
-        colors = ti.ndarray(ti.types.vector(3, ti.u8), shape=max(len(rgb), 1))
-        colors.from_numpy(rgb if len(rgb) else np.zeros((1, 3), np.uint8))
-        image = ti.ndarray(ti.types.vector(3, ti.u8), shape=(self.height, self.width))
-        self._resolve(colors, image, ti.Vector(list(BACKGROUND), ti.i32))
-        out = image.to_numpy()
+            if self.colors.shape[0] < len(tris):
+                self.screen = ti.ndarray(ti.math.vec3, shape=6 * len(tris))
+                self.colors = ti.ndarray(ti.types.vector(3, ti.u8), shape=2 * len(tris))
+            self.screen.from_numpy(_padded(tris.reshape(-1, 3), self.screen.shape[0]))
+            self.colors.from_numpy(_padded(rgb, self.colors.shape[0]))
+            self._raster(len(tris), self.screen)
+        self._resolve(self.colors, self.image, ti.Vector(list(BACKGROUND), ti.i32))
+        out = self.image.to_numpy()
         if points is not None and len(points):
             draw_points(out, project_points(np.asarray(points, np.float64), camera, self.width, self.height),
                         point_rgb, point_size)
         return out
+
+
+def _padded(rows: np.ndarray, capacity: int) -> np.ndarray:
+    """rows (n, 3) followed by zero rows up to `capacity` (from_numpy needs the exact shape)."""
+    out = np.zeros((capacity,) + rows.shape[1:], rows.dtype)
+    out[:len(rows)] = rows
+    return out
 
 
 NEAR = 1e-3  # m: the near plane, as a fraction of the eye-target distance

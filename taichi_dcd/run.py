@@ -39,13 +39,21 @@ def run_files(body_names: list[str]) -> list[str]:
     return ["metrics.json", "metrics.csv", "animation.gif"] + [f"final/{n}.obj" for n in body_names]
 
 
+def manifest_files(folder: Path) -> list[str]:
+    """The files (relative paths) that folder's manifest says this tool wrote; [] without one."""
+    try:
+        listed = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [name for name in listed if isinstance(name, str)] if isinstance(listed, list) else []
+
+
 def _files_of_earlier_run(out: Path) -> set[Path]:
     """Files in `out` that an earlier run recorded as its own (with their .tmp siblings)."""
-    try:
-        listed = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
+    listed = manifest_files(out)
+    if not listed:
         return set()
-    ours = {out / name for name in listed if isinstance(name, str)}
+    ours = {out / name for name in listed}
     ours |= set((out / "frames").glob(FRAME_PATTERN))
     ours |= {p.with_name(p.name + ".tmp") for p in list(ours)}
     return ours
@@ -107,14 +115,20 @@ class FrameWriter:
         self.gif_frames = [] if gif else None
         self.count = 0
 
-    def write(self) -> None:
+    def write(self, vertices: np.ndarray) -> None:
+        """Render the scene with its vertices (V, 3) as the next frame."""
         from .render import write_png
 
         points = self.scene.contact_points() if self.contacts else None
-        image = self.rasterizer.render(self.scene.vertices(), self.faces, self.face_rgb, self.camera, points)
+        image = self.rasterizer.render(vertices, self.faces, self.face_rgb, self.camera, points)
         path = self.dir / f"frame_{self.count:05d}.png"
-        write_png(path.with_name(path.name + ".tmp"), image)  # an interrupt never leaves half a PNG
-        os.replace(path.with_name(path.name + ".tmp"), path)
+        tmp = path.with_name(path.name + ".tmp")  # an interrupt never leaves half a PNG
+        try:
+            write_png(tmp, image)
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
         if self.gif_frames is not None and self.count % GIF_EVERY == 0:
             self.gif_frames.append(image[::2, ::2].copy())
         self.count += 1
@@ -154,10 +168,10 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     sim = scene.config.sim
     frames = sim.frames if frames is None else int(frames)
     writer = FrameWriter(scene, out, contacts=draw_contacts, gif=gif) if render else None
-    if writer:
-        writer.write()
     moving = scene.moving_vertex_mask()
     last_good = scene.vertices()
+    if writer:
+        writer.write(last_good)
     x_prev = last_good[moving]
     growths = scene.solver.contact_growths
     rows = []
@@ -186,11 +200,11 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             x = last_good[moving]
             speed = float(np.max(np.linalg.norm(x - x_prev, axis=1)) / sim.frame_dt) if len(x) else 0.0
             x_prev = x
-            pen = scene.penetration()
+            pen = scene.penetration(last_good)
             max_depth = max(max_depth, pen.depth)
             rows.append((scene.time, pen.depth, pen.volume, scene.kinetic_energy(), contacts, speed))
             if writer:
-                writer.write()
+                writer.write(last_good)
             if speed < SETTLE_SPEED:
                 calm_since = scene.time - sim.frame_dt if calm_since is None else calm_since
             else:

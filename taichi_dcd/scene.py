@@ -173,11 +173,12 @@ class Scene:
             mask[b.vertex_start:b.vertex_start + b.vertex_count] = b.kind != "static"
         return mask
 
-    def penetration(self):
-        """Penetration measured from the current meshes alone (metrics.scene_penetration)."""
+    def penetration(self, vertices: np.ndarray | None = None):
+        """Penetration measured from the current meshes alone (metrics.scene_penetration);
+        `vertices` (V, 3) if the caller already read them."""
         from .metrics import scene_penetration
 
-        x = self.vertices()
+        x = self.vertices() if vertices is None else vertices
         return scene_penetration([
             (b.name, b.kind, trimesh.Trimesh(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces,
                                              process=False))
