@@ -99,3 +99,16 @@ def builtin_scene(name: str) -> SceneConfig:
     import copy
 
     return scene_from_dict(copy.deepcopy(SCENES[name][1]), name=name, where=f"built-in scene {name!r}")
+
+
+def scene_config(name: str) -> SceneConfig:
+    """A built-in scene's config by name, or a scene file's by path. Raises SceneError."""
+    import os
+
+    from .config import SceneError, read_scene_file
+
+    if name in SCENES:
+        return builtin_scene(name)
+    if not name.endswith(".toml") and "/" not in name and not os.path.exists(name):
+        raise SceneError(f"unknown scene {name!r}: not a built-in scene (see `taichi-dcd list`) nor a file")
+    return read_scene_file(name)

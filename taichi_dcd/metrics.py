@@ -175,3 +175,27 @@ def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetra
             if depth > result.depth or (result.pair is None and volume > 0):
                 result.depth, result.pair = depth, (name_a, name_b)
     return result
+
+
+# Erleben's tests pass (issue 5) when a run settles within its 5 s without NaN and the
+# independent measure finds at most these (for scenes in metres; scaled scenes scale them).
+PASS_FINAL_DEPTH = 1e-4     # m
+PASS_FINAL_OVERLAP = 1e-9   # m³
+PASS_MAX_DEPTH = 5e-3       # m, over the whole run (PyBullet and MuJoCo reach 15–23 mm)
+
+
+def verdict(metrics: dict, length_scale: float = 1.0) -> str | None:
+    """None if a run's metrics (metrics.json as a dict) pass the contact test, else the first
+    criterion it fails, in words. `length_scale` scales the limits for a scaled scene
+    (depths by it, volumes by its cube)."""
+    if not metrics.get("complete"):
+        return f"failed: {metrics.get('error') or 'incomplete'}"
+    if not metrics.get("settled"):
+        return "not settled"
+    if metrics["final_penetration_depth"] > PASS_FINAL_DEPTH * length_scale:
+        return f"final depth {metrics['final_penetration_depth']:.1e} m"
+    if metrics["final_overlap_volume"] > PASS_FINAL_OVERLAP * length_scale ** 3:
+        return f"final overlap {metrics['final_overlap_volume']:.1e} m³"
+    if metrics["max_penetration_depth"] > PASS_MAX_DEPTH * length_scale:
+        return f"max depth {metrics['max_penetration_depth']:.1e} m"
+    return None

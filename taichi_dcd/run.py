@@ -49,21 +49,30 @@ def manifest_files(folder: Path) -> list[str]:
 
 
 def _files_of_earlier_run(out: Path) -> set[Path]:
-    """Files in `out` that an earlier run recorded as its own (with their .tmp siblings)."""
+    """Files in `out` that an earlier run recorded as its own (with their .tmp siblings):
+    the files its manifest lists, its frames, and everything under the folders it lists."""
     listed = manifest_files(out)
     if not listed:
         return set()
     ours = {out / name for name in listed}
     ours |= set((out / "frames").glob(FRAME_PATTERN))
+    try:
+        folders = json.loads((out / MANIFEST).read_text(encoding="utf-8")).get("folders", [])
+    except (OSError, ValueError, AttributeError):
+        folders = []
+    for folder in folders if isinstance(folders, list) else []:
+        if isinstance(folder, str) and folder and ".." not in Path(folder).parts:
+            ours |= {p for p in (out / folder).rglob("*") if p.is_file() or p.is_symlink()}
     ours |= {p.with_name(p.name + ".tmp") for p in list(ours)}
     return ours
 
 
-def prepare_output(out: Path, body_names: list[str], force: bool = False) -> None:
-    """Make `out` ready for a run: create it, or reuse an earlier run's folder after deleting
-    that run's files (and only those). A folder holding anything else is refused unless
-    `force`; even then a file of someone else's with a name the run writes is never
-    overwritten. Raises OutputError naming the folder or the file."""
+def prepare_output(out: Path, files: list[str], force: bool = False, folders: tuple[str, ...] = ()) -> None:
+    """Make `out` ready for a run that writes `files` (paths relative to `out`; frames too,
+    frames/frame_NNNNN.png, and whatever goes under `folders`): create it, or reuse an
+    earlier run's folder after deleting that run's files (and only those). A folder holding
+    anything else is refused unless `force`; even then a file of someone else's with a name
+    the run writes is never overwritten. Raises OutputError naming the folder or the file."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"output folder {out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
@@ -73,15 +82,16 @@ def prepare_output(out: Path, body_names: list[str], force: bool = False) -> Non
     if foreign and not force:
         raise OutputError(f"output folder {out} holds files this tool did not write (e.g. "
                           f"{foreign[0].relative_to(out)}); choose another --out or pass --force")
-    ours_next = {out / name for name in run_files(body_names)}
-    clash = [p for p in foreign if p in ours_next or (p.parent == out / "frames" and p.match(FRAME_PATTERN))]
+    ours_next = {out / name for name in files}
+    clash = [p for p in foreign if p in ours_next or (p.parent == out / "frames" and p.match(FRAME_PATTERN))
+             or any(out / f in p.parents for f in folders)]
     if clash:
         raise OutputError(f"{clash[0]} was not written by this tool and would be overwritten; "
                           "choose another --out")
     for p in ours & present:
         p.unlink()
-    write_json_atomic(out / MANIFEST, {"written_by": "taichi-dcd", "files": run_files(body_names),
-                                       "frames": f"frames/{FRAME_PATTERN}"})
+    write_json_atomic(out / MANIFEST, {"written_by": "taichi-dcd", "files": list(files),
+                                       "folders": list(folders), "frames": f"frames/{FRAME_PATTERN}"})
 
 
 class FrameWriter:
@@ -147,8 +157,19 @@ class FrameWriter:
 
 # The GIF keeps every GIF_EVERY-th frame at half resolution (real time at 0.01 s frames).
 GIF_EVERY = 4
-CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", "contact_count",
-               "max_vertex_speed"]
+CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", "potential_energy",
+               "contact_count", "max_vertex_speed"]
+
+
+def energy_drift(energy_start: float, kinetic, potential) -> float:
+    """The largest rise of mechanical energy (kinetic + gravitational) above its value at
+    the start, as a fraction of the largest kinetic energy reached: > 0 means the run gained
+    energy it was never given; a drop test that loses energy to contact gives ≤ 0."""
+    kinetic, potential = np.asarray(kinetic, float), np.asarray(potential, float)
+    if kinetic.size == 0 or not kinetic.max() > 0.0:
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):  # a failed run's energies may be inf
+        return float(np.max(kinetic + potential - energy_start) / kinetic.max())
 
 
 def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.stderr, render: bool = False,
@@ -163,7 +184,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     checked first (prepare_output: OutputError); contact buffer growth is reported on
     `notices` when it happens."""
     out = Path(out_dir)
-    prepare_output(out, scene.body_names, force)
+    prepare_output(out, run_files(scene.body_names), force)
     (out / "final").mkdir(parents=True, exist_ok=True)
     sim = scene.config.sim
     frames = sim.frames if frames is None else int(frames)
@@ -173,6 +194,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     if writer:
         writer.write(last_good)
     x_prev = last_good[moving]
+    energy_start = scene.kinetic_energy() + scene.potential_energy()
     growths = scene.solver.contact_growths
     rows = []
     error = None
@@ -202,7 +224,8 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             x_prev = x
             pen = scene.penetration(last_good)
             max_depth = max(max_depth, pen.depth)
-            rows.append((scene.time, pen.depth, pen.volume, scene.kinetic_energy(), contacts, speed))
+            rows.append((scene.time, pen.depth, pen.volume, scene.kinetic_energy(), scene.potential_energy(),
+                         contacts, speed))
             if writer:
                 writer.write(last_good)
             if speed < SETTLE_SPEED:
@@ -239,7 +262,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         mesh.export(out / "final" / f"{b.name}.obj")
     if writer and gif:
         writer.write_gif(out / "animation.gif", sim.frame_dt)
-    final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0, 0.0)
+    final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
     metrics = {
         "scene": scene.name,
         "frames": len(rows),
@@ -252,11 +275,12 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "final_overlap_volume": final[2],
         "settled": settled,
         "time_to_settle": calm_since if settled else None,
-        "final_max_vertex_speed": final[5],
+        "final_max_vertex_speed": final[6],
         "nan_detected": error is not None and "NaN" in error,
         "complete": error is None and not interrupted,
         "error": error or ("interrupted" if interrupted else None),
         "final_kinetic_energy": final[3],
+        "energy_drift": energy_drift(energy_start, [r[3] for r in rows], [r[4] for r in rows]),
         "contact_buffer_growths": scene.solver.contact_growths,
         "settings": {
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,

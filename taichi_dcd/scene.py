@@ -148,15 +148,33 @@ class Scene:
         inertia = m.body_inertia.to_numpy()[: m.n_bodies]
         v, w, q = self.state.body_v.to_numpy(), self.state.body_w.to_numpy(), self.body_rotations()
         energy = 0.0
-        for k in np.flatnonzero(kind == 1):
-            r = quat_to_matrix(q[k])
-            energy += 0.5 * v[k] @ v[k] / inv_mass[k] + 0.5 * w[k] @ (r @ inertia[k] @ r.T) @ w[k]
-        if m.has_soft:
-            inv = m.vertex_inv_mass.to_numpy()[: m.n_vertices]
-            vv = self.state.vertex_v.to_numpy()[: m.n_vertices]
-            soft = inv > 0
-            energy += 0.5 * float(np.sum((vv[soft] ** 2).sum(axis=1) / inv[soft]))
+        with np.errstate(over="ignore", invalid="ignore"):  # an exploding run's energy is inf, not a warning
+            for k in np.flatnonzero(kind == 1):
+                r = quat_to_matrix(q[k])
+                energy += 0.5 * v[k] @ v[k] / inv_mass[k] + 0.5 * w[k] @ (r @ inertia[k] @ r.T) @ w[k]
+            if m.has_soft:
+                inv = m.vertex_inv_mass.to_numpy()[: m.n_vertices]
+                vv = self.state.vertex_v.to_numpy()[: m.n_vertices]
+                soft = inv > 0
+                energy += 0.5 * float(np.sum((vv[soft] ** 2).sum(axis=1) / inv[soft]))
         return float(energy)
+
+    def potential_energy(self) -> float:
+        """Gravitational potential energy (J) of rigid and soft bodies, −Σ m g·x, zero at the
+        origin (rigid bodies by their centre of mass, soft bodies particle by particle)."""
+        m = self.model
+        g = np.asarray(self.config.sim.gravity, np.float64)
+        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        inv_mass = m.body_inv_mass.to_numpy()[: m.n_bodies].astype(np.float64)
+        x = self.state.body_x.to_numpy()[: m.n_bodies].astype(np.float64)
+        rigid = kind == 1
+        with np.errstate(over="ignore", invalid="ignore"):
+            energy = -float(np.sum((x[rigid] @ g) / inv_mass[rigid]))
+            if m.has_soft:
+                inv = m.vertex_inv_mass.to_numpy()[: m.n_vertices].astype(np.float64)
+                soft = inv > 0
+                energy -= float(np.sum((self.vertices()[soft] @ g) / inv[soft]))
+        return energy
 
     def body_mesh(self, name: str) -> trimesh.Trimesh:
         """The body's current world-space mesh."""

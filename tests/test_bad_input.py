@@ -1,16 +1,15 @@
 """Bad meshes, bad scene files, failing and interrupted runs, and output folders: one
 clear line naming the culprit, the right exit status, no traceback, nothing else touched."""
 
-import hashlib
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
+from cli_helpers import assert_one_line_error, run_cli, snapshot
 
 TETRA_V = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "v 0 0 1"]
 TETRA_F = ["f 1 3 2", "f 1 2 4", "f 2 3 4", "f 1 4 3"]  # outward
@@ -37,26 +36,6 @@ kind = "static"
 shape = "ground"
 {extra_bodies}
 """
-
-
-def snapshot(folder: Path) -> dict:
-    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-def run_cli(*args, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
-    env = dict(os.environ, ENABLE_TAICHI_HEADER_PRINT="False")
-    return subprocess.run([sys.executable, "-m", "taichi_dcd", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout, env=env)
-
-
-def assert_one_line_error(result, status: int, *culprits: str):
-    assert result.returncode == status, result.stderr
-    assert "Traceback" not in result.stderr
-    last = result.stderr.strip().splitlines()[-1]
-    assert last.startswith("taichi-dcd: error: "), last
-    for culprit in culprits:
-        assert culprit in last, f"{culprit!r} not in {last!r}"
 
 
 # ----------------------------------------------------------------------------- meshes
