@@ -16,6 +16,7 @@ import trimesh
 
 from . import runtime
 from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
+from .tunnelling import mesh_thickness
 
 DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
 
@@ -196,7 +197,9 @@ class ModelBuilder:
             tri_body.append(np.full(len(f), k, np.int32))
             vertex_range[k] = (v_off, v_off + len(v))
             tri_range[k] = (t_off, t_off + len(f))
-            bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume))
+            bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume,
+                                   thickness=mesh_thickness(v, f),
+                                   reach=float(np.linalg.norm(v - com[k], axis=1).max())))
             v_off += len(v)
             t_off += len(f)
 
@@ -206,54 +209,55 @@ class ModelBuilder:
         i32 = ti.i32
         real = runtime.real_dtype()
 
-        m = Model(
-            bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
-            body_kind=_from(ti.field(i32, shape=n_b), kind),
-            body_inv_mass=_from(scalar_field(n_b), inv_mass.astype(real)),
-            body_inertia=_from(mat_field(n_b), inertia.astype(real)),
-            body_inv_inertia=_from(mat_field(n_b), inv_inertia.astype(real)),
-            body_force=_from(vec_field(n_b), np.array([s.force for s in self.specs], real)),
-            body_friction=_from(scalar_field(n_b), np.array([s.friction for s in self.specs], real)),
-            body_restitution=_from(scalar_field(n_b), np.array([s.restitution for s in self.specs], real)),
-            body_vertex_range=_from(ti.Vector.field(2, i32, shape=n_b), vertex_range),
-            body_tri_range=_from(ti.Vector.field(2, i32, shape=n_b), tri_range),
-            body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
-            body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
-            vertex_body=_from(ti.field(i32, shape=n_v), np.concatenate(vertex_body)),
-            vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),
-            vertex_inv_mass=_from(scalar_field(n_v), np.concatenate(vertex_inv_mass).astype(real)),
-            tri_indices=_from(ti.Vector.field(3, i32, shape=n_t), np.concatenate(tris).astype(np.int32)),
-            tri_body=_from(ti.field(i32, shape=n_t), np.concatenate(tri_body)),
-            tri_indices_np=np.concatenate(tris).astype(np.int32),
-            tri_body_np=np.concatenate(tri_body),
-        )
-        if has_soft:
-            m.edge_indices = _from(ti.Vector.field(2, i32, shape=n_e), np.concatenate(edges).astype(np.int32))
-            m.edge_rest = _from(scalar_field(n_e), np.concatenate(edge_rest).astype(real))
+        # One SNode tree for the whole Model and State (runtime.field_block).
+        with runtime.field_block():
+            m = Model(
+                bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
+                body_kind=_from(scalar_field(n_b, i32), kind),
+                body_inv_mass=_from(scalar_field(n_b), inv_mass.astype(real)),
+                body_inertia=_from(mat_field(n_b), inertia.astype(real)),
+                body_inv_inertia=_from(mat_field(n_b), inv_inertia.astype(real)),
+                body_force=_from(vec_field(n_b), np.array([s.force for s in self.specs], real)),
+                body_friction=_from(scalar_field(n_b), np.array([s.friction for s in self.specs], real)),
+                body_restitution=_from(scalar_field(n_b), np.array([s.restitution for s in self.specs], real)),
+                body_vertex_range=_from(vec_field(n_b, 2, i32), vertex_range),
+                body_tri_range=_from(vec_field(n_b, 2, i32), tri_range),
+                body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
+                body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
+                vertex_body=_from(scalar_field(n_v, i32), np.concatenate(vertex_body)),
+                vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),
+                vertex_inv_mass=_from(scalar_field(n_v), np.concatenate(vertex_inv_mass).astype(real)),
+                tri_indices=_from(vec_field(n_t, 3, i32), np.concatenate(tris).astype(np.int32)),
+                tri_body=_from(scalar_field(n_t, i32), np.concatenate(tri_body)),
+                tri_indices_np=np.concatenate(tris).astype(np.int32),
+                tri_body_np=np.concatenate(tri_body),
+            )
+            if has_soft:
+                m.edge_indices = _from(vec_field(n_e, 2, i32), np.concatenate(edges).astype(np.int32))
+                m.edge_rest = _from(scalar_field(n_e), np.concatenate(edge_rest).astype(real))
 
-        velocity = np.array([s.velocity for s in self.specs], real)
-        vertex_v = np.concatenate([np.tile(velocity[k], (b.vertex_count, 1)) for k, b in enumerate(bodies)])
-        quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], real), (n_b, 1))
-        x_world = np.concatenate(vertex_world).astype(real)
-        s = State(
-            body_x=_from(vec_field(n_b), com.astype(real)),
-            body_q=_from(vec_field(n_b, 4), quat),
-            body_v=_from(vec_field(n_b), np.where((kind == STATIC)[:, None], 0.0, velocity).astype(real)),
-            body_w=_from(vec_field(n_b), np.zeros((n_b, 3), real)),
-            body_x_prev=_from(vec_field(n_b), com.astype(real)),
-            body_q_prev=_from(vec_field(n_b, 4), quat),
-            vertex_x=_from(vec_field(n_v), x_world),
-            vertex_x_prev=_from(vec_field(n_v if has_soft else 0), x_world if has_soft else x_world[:0]),
-            vertex_v=_from(vec_field(n_v if has_soft else 0), vertex_v.astype(real) if has_soft else x_world[:0]),
-        )
+            velocity = np.array([s.velocity for s in self.specs], real)
+            vertex_v = np.concatenate([np.tile(velocity[k], (b.vertex_count, 1)) for k, b in enumerate(bodies)])
+            quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], real), (n_b, 1))
+            x_world = np.concatenate(vertex_world).astype(real)
+            s = State(
+                body_x=_from(vec_field(n_b), com.astype(real)),
+                body_q=_from(vec_field(n_b, 4), quat),
+                body_v=_from(vec_field(n_b), np.where((kind == STATIC)[:, None], 0.0, velocity).astype(real)),
+                body_w=_from(vec_field(n_b), np.zeros((n_b, 3), real)),
+                body_x_prev=_from(vec_field(n_b), com.astype(real)),
+                body_q_prev=_from(vec_field(n_b, 4), quat),
+                vertex_x=_from(vec_field(n_v), x_world),
+                vertex_x_prev=_from(vec_field(n_v if has_soft else 0), x_world if has_soft else x_world[:0]),
+                vertex_v=_from(vec_field(n_v if has_soft else 0), vertex_v.astype(real) if has_soft else x_world[:0]),
+            )
         return m, s
 
 
 def _from(fld, data: np.ndarray):
-    """Fill a field (at least one row) from `data`, padding an empty array with zeros."""
+    """Fill a field (max(len(data), 1) rows) from `data`, an empty array as one zero row."""
     data = np.asarray(data)
-    if len(data) < fld.shape[0]:
-        pad = np.zeros((fld.shape[0] - len(data),) + data.shape[1:], dtype=data.dtype)
-        data = np.concatenate([data, pad]) if len(data) else pad
-    fld.from_numpy(data)
+    if len(data) == 0:
+        data = np.zeros((1,) + data.shape[1:], dtype=data.dtype)
+    runtime.fill(fld, data)
     return fld

@@ -57,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--substeps", type=_positive_int, help="substeps per frame (default: the scene's)")
     run.add_argument("--iterations", type=_positive_int, help="solver sweeps per substep (default: the scene's)")
     run.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
+    run.add_argument("--scale", type=_positive_float, default=1.0,
+                     help="scale the scene's lengths by this factor and its times by the square root "
+                          "(same motion, L times larger; default 1)")
     run.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
     run.add_argument("--out", help="output folder (default outputs/<scene>/; with `all`, the parent folder)")
     run.add_argument("--no-frames", action="store_true", help="render no frames (faster)")
@@ -95,6 +98,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -110,11 +123,13 @@ INTERRUPTED = 130  # _run_one's status after Ctrl-C; the command line exits 1
 
 def _run_one(config, args, out) -> tuple[int, dict | None]:
     from . import runtime
-    from .config import SceneError
+    from .config import SceneError, scale_scene
     from .run import OutputError, run_scene
     from .scene import Scene
 
     try:
+        if args.scale != 1.0:
+            config = scale_scene(config, args.scale)
         if args.substeps:
             config.sim.substeps = args.substeps
         if args.iterations:
@@ -188,7 +203,8 @@ def _cmd_run(args) -> int:
     except SceneError as exc:
         print(f"taichi-dcd: error: {exc}", file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else Path("outputs") / config.name
+    suffix = f"-x{args.scale:g}" if args.scale != 1.0 else ""
+    out = Path(args.out) if args.out else Path("outputs") / f"{config.name}{suffix}"
     code = _run_one(config, args, out)[0]
     return 1 if code == INTERRUPTED else code
 

@@ -36,6 +36,18 @@ class SimConfig:
     gravity: tuple = (0.0, -9.8, 0.0)
     # Stop before `frames` once every vertex has been slower than SETTLE_SPEED for SETTLE_TIME.
     stop_when_settled: bool = False
+    # The scene's size relative to metre-sized bodies: speeds the solver and the settle test
+    # treat as slow scale with its square root (a scene scaled by L moves √L as fast).
+    length_scale: float = 1.0
+
+    @property
+    def settle_speed(self) -> float:
+        """m/s below which every vertex must stay for SETTLE_TIME·√length_scale s."""
+        return SETTLE_SPEED * math.sqrt(self.length_scale)
+
+    @property
+    def settle_time(self) -> float:
+        return SETTLE_TIME * math.sqrt(self.length_scale)
 
 
 @dataclass
@@ -66,7 +78,7 @@ class SceneConfig:
 
 
 _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "iterations": "count",
-             "gravity": "vec3", "stop_when_settled": "bool"}
+             "gravity": "vec3", "stop_when_settled": "bool", "length_scale": "positive"}
 _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg"}
@@ -165,3 +177,26 @@ def read_scene_file(path) -> SceneConfig:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: TOML syntax error: {exc}") from None
     return scene_from_dict(data, name=path.stem, base_dir=path.parent, where=str(path))
+
+
+def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
+    """A copy of the scene with every length multiplied by `factor` and every time by
+    √factor, so that under the same gravity the motion is the same motion, L times larger:
+    positions and meshes ×L, velocities and frame_dt ×√L, forces ×L³ (masses grow as L³),
+    soft compliance ×L⁻² (the same strain under L³ times the load), length_scale ×L."""
+    import copy
+
+    if not (math.isfinite(factor) and factor > 0):
+        raise ValueError(f"scale factor must be a positive finite number, got {factor}")
+    scaled = copy.deepcopy(config)
+    root = math.sqrt(factor)
+    scaled.name = f"{config.name}-x{factor:g}"
+    scaled.sim.frame_dt *= root
+    scaled.sim.length_scale *= factor
+    for body in scaled.bodies:
+        body.scale *= factor
+        body.position = tuple(factor * x for x in body.position)
+        body.velocity = tuple(root * v for v in body.velocity)
+        body.force = tuple(factor ** 3 * f for f in body.force)
+        body.compliance /= factor ** 2
+    return scaled

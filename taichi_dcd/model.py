@@ -35,6 +35,8 @@ class BodyInfo:
     faces: np.ndarray  # (tri_count, 3) local vertex indices
     mass: float
     rest_volume: float
+    thickness: float = float("inf")  # m, the thinnest wall (tunnelling.mesh_thickness)
+    reach: float = 0.0               # m, largest distance of a vertex from the centre of mass
 
 
 @dataclass
@@ -104,15 +106,24 @@ class State:
     substeps_done: int = 0
 
 
+def _allocate(make, n: int) -> ti.Field:
+    """make(shape) → a field of max(n, 1) rows; inside runtime.field_block it joins the
+    block's SNode tree (allocated when the block closes)."""
+    rows = max(n, 1)
+    fld = make(None) if runtime.in_field_block() else make(rows)
+    if runtime.in_field_block():
+        runtime.place(fld, rows)
+    return fld
+
+
 def vec_field(n: int, dim: int = 3, dtype=None) -> ti.Field:
     """A field of `dim`-vectors of the kernels' float type (or dtype), at least one row."""
-    return ti.Vector.field(dim, dtype or runtime.real_type(), shape=max(n, 1))
+    return _allocate(lambda shape: ti.Vector.field(dim, dtype or runtime.real_type(), shape=shape), n)
 
 
 def scalar_field(n: int, dtype=None) -> ti.Field:
-    return ti.field(dtype or runtime.real_type(), shape=max(n, 1))
+    return _allocate(lambda shape: ti.field(dtype or runtime.real_type(), shape=shape), n)
 
 
 def mat_field(n: int) -> ti.Field:
-    real = runtime.real_type()
-    return ti.Matrix.field(3, 3, real, shape=max(n, 1))
+    return _allocate(lambda shape: ti.Matrix.field(3, 3, runtime.real_type(), shape=shape), n)

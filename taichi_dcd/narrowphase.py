@@ -31,10 +31,14 @@ type, tol = TOL_ULPS·eps from `runtime`, L = longest edge of the pair):
   edges projected into the other plane) are skipped likewise.
 - A constraint needs C > tol·L (the listing uses the absolute 1e-7, which is not
   scale invariant and is below f32 noise at unit scale).
-- Equal positive depths are a tie the listing drops; here it is resolved by
-  moving the triangle whose vertex sum (then normal) is lexicographically
-  smaller, which does not depend on argument order.
-The contact point is the deepest candidate of the moved triangle.
+- Equal positive depths are a tie the listing drops; here depths within tol·L of
+  each other are a tie (symmetric configurations, such as apex on apex, come out
+  equal only up to rounding, which differs when the scene is scaled or moved),
+  resolved by moving the triangle whose vertex sum (then normal) is
+  lexicographically smaller, which does not depend on argument order.
+The contact point is the deepest candidate of the moved triangle; candidates of
+different kinds within tol·L of each other are a tie won by a vertex of the moved
+triangle, then a vertex of the other, then an edge crossing.
 """
 
 from dataclasses import dataclass
@@ -92,13 +96,13 @@ def moved_side(depth_a: float, depth_b: float, sum_a: vec3, sum_b: vec3, n_a: ve
     """Eq. 6's decision: C = min(depth_A, depth_B); the shallower triangle moves.
 
     Returns 0 if A moves, 1 if B moves, -1 if C <= min_depth (no constraint). On a
-    tie the triangle whose vertex sum (then normal) is lexicographically smaller
+    tie (depths within min_depth of each other) the triangle whose vertex sum (then normal) is lexicographically smaller
     moves, which does not depend on argument order.
     """
     side = -1
     if ti.min(depth_a, depth_b) > min_depth:
         side = 0 if depth_a < depth_b else 1
-        if depth_a == depth_b:
+        if ti.abs(depth_a - depth_b) <= min_depth:
             order = lex_compare(sum_a, sum_b)
             if order == 0:
                 order = lex_compare(n_a, n_b)
@@ -114,9 +118,16 @@ def deeper(depth0: float, point0: vec3, depth1: float, point1: vec3):
 
 
 @ti.func
+def clearly_deeper(depth0: float, point0: vec3, depth1: float, point1: vec3, margin: float):
+    """The second candidate only if it is deeper than the first by more than `margin`."""
+    take1 = depth1 > depth0 + margin
+    return ti.select(take1, depth1, depth0), ti.select(take1, point1, point0)
+
+
+@ti.func
 def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
                       q0: vec3, q1: vec3, q2: vec3, n_q: vec3, s_q: vec3,
-                      cos_pq: float, tol: float):
+                      cos_pq: float, tol: float, margin: float):
     """Depth of triangle P in triangle Q's half-space and the deepest candidate point.
 
     s_p: P's vertices' signed distances to Q's plane; s_q: Q's to P's plane;
@@ -129,6 +140,11 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
     Branch-free: the outcomes are data-dependent coin flips, and mispredicted
     branches cost more than the arithmetic. An invalid candidate gets depth 0,
     which never beats the floor of 0.
+
+    Candidates of different kinds within `margin` (tol·L) of each other are a tie, won
+    by P's vertex, then Q's vertex moved onto P, then an edge crossing: an edge of P
+    parallel to Q's plane has every point as deep as its end vertex, and which of them
+    rounding makes deepest differs when the same scene is scaled or moved.
     """
     pts_p = [p0, p1, p2]
     pts_q = [q0, q1, q2]
@@ -197,8 +213,8 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
         depth_i = ti.select(best_x > 0.0, -(s_p[i] + u * ds), 0.0)
         depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u * (pts_p[k] - pts_p[i]))
 
-    depth, point = deeper(depth_v, point_v, depth_q, point_q)
-    depth, point = deeper(depth, point, depth_e, point_e)
+    depth, point = clearly_deeper(depth_v, point_v, depth_q, point_q, margin)
+    depth, point = clearly_deeper(depth, point, depth_e, point_e, margin)
     return depth, point
 
 
@@ -247,9 +263,10 @@ def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: 
                 if intervals_overlap(a0, a1, a2, n_a, s_a, b0, b1, b2, n_b, s_b, tol):
                     hit = True
                     cos_ab = n_a.dot(n_b)
-                    depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol)
-                    depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol)
-                    side = moved_side(depth_a, depth_b, a0 + a1 + a2, b0 + b1 + b2, n_a, n_b, tol * ti.sqrt(len_sq))
+                    margin = tol * ti.sqrt(len_sq)
+                    depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol, margin)
+                    depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol, margin)
+                    side = moved_side(depth_a, depth_b, a0 + a1 + a2, b0 + b1 + b2, n_a, n_b, margin)
                     if side == 0:
                         depth, normal, point = depth_a, n_b, point_a
                     elif side == 1:

@@ -50,20 +50,23 @@ def _inside(t: np.ndarray, p: np.ndarray) -> bool:
     return np.dot(c1, c2) > 0.0 and np.dot(c1, c3) > 0.0
 
 
-def _depth_of(p_tri, s_p, n_p, d_p, q_tri, s_q, n_q, d_q, tol):
-    """(depth, point): deepest candidate of triangle P below Q's plane, floor 0."""
-    best_depth, best_point = 0.0, np.zeros(3)
+def _depth_of(p_tri, s_p, n_p, d_p, q_tri, s_q, n_q, d_q, tol, margin):
+    """(depth, point): deepest candidate of triangle P below Q's plane, floor 0. The
+    three kinds of candidate (P's vertices, Q's vertices moved onto P, edge crossings)
+    are ranked in that order when their depths are within `margin`."""
+    best = [[0.0, np.zeros(3)] for _ in range(3)]
+    kind = 0
 
     def consider(x):
-        nonlocal best_depth, best_point
         depth = -(np.dot(n_q, x) + d_q)
-        if depth > best_depth:
-            best_depth, best_point = depth, x
+        if depth > best[kind][0]:
+            best[kind] = [depth, x]
 
     projected = [p_tri[i] - s_p[i] * n_q for i in range(3)]  # Eq. 4
     for i in range(3):
         if _inside(q_tri, projected[i]):
             consider(p_tri[i])
+    kind = 1
     cos_pq = np.dot(n_p, n_q)
     if abs(cos_pq) > tol:  # Eq. 5: from Q's vertices along N_Q onto P's plane
         for j in range(3):
@@ -71,6 +74,7 @@ def _depth_of(p_tri, s_p, n_p, d_p, q_tri, s_q, n_q, d_q, tol):
             x = q_tri[j] + t * n_q
             if _inside(p_tri, x):
                 consider(x)
+    kind = 2
     for i in range(3):  # projected edges of P against Q's edges
         e1 = projected[(i + 1) % 3] - projected[i]
         for j in range(3):
@@ -84,7 +88,11 @@ def _depth_of(p_tri, s_p, n_p, d_p, q_tri, s_q, n_q, d_q, tol):
             w = np.dot(np.cross(v, e1), n) / n_len**2
             if 0.0 <= u <= 1.0 and 0.0 <= w <= 1.0:
                 consider(p_tri[i] + u * (p_tri[(i + 1) % 3] - p_tri[i]))
-    return best_depth, best_point
+    depth, point = best[0]
+    for later_depth, later_point in best[1:]:
+        if later_depth > depth + margin:
+            depth, point = later_depth, later_point
+    return depth, point
 
 
 def _lex_key(t: np.ndarray, n: np.ndarray):
@@ -118,11 +126,12 @@ def collide_pair_reference(a, b, eps: float = float(np.finfo(np.float64).eps)) -
     if not (ta[1] >= tb[0] and tb[1] >= ta[0]):
         return out
     out["hit"] = True
-    depth_a, point_a = _depth_of(a, s_a, n_a, d_a, b, s_b, n_b, d_b, tol)
-    depth_b, point_b = _depth_of(b, s_b, n_b, d_b, a, s_a, n_a, d_a, tol)
-    if min(depth_a, depth_b) <= tol * length:
+    margin = tol * length
+    depth_a, point_a = _depth_of(a, s_a, n_a, d_a, b, s_b, n_b, d_b, tol, margin)
+    depth_b, point_b = _depth_of(b, s_b, n_b, d_b, a, s_a, n_a, d_a, tol, margin)
+    if min(depth_a, depth_b) <= margin:
         return out
-    if depth_a != depth_b:
+    if abs(depth_a - depth_b) > margin:
         move_a = depth_a < depth_b
     else:
         move_a = _lex_key(a, n_a) <= _lex_key(b, n_b)

@@ -14,7 +14,6 @@ import numpy as np
 import trimesh
 
 from . import runtime
-from .config import SETTLE_SPEED, SETTLE_TIME
 from .scene import Scene
 from .solver import SimulationError
 
@@ -196,10 +195,11 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     x_prev = last_good[moving]
     energy_start = scene.kinetic_energy() + scene.potential_energy()
     growths = scene.solver.contact_growths
+    fast_reported = False
     rows = []
     error = None
     interrupted = False
-    calm_since = None           # time at which every vertex became slower than SETTLE_SPEED
+    calm_since = None           # time at which every vertex became slower than sim.settle_speed
     settled = False
     max_depth = 0.0
     step_times = []             # wall time of each frame's simulation alone
@@ -214,6 +214,9 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             except SimulationError as exc:
                 raise SimulationError(f"frame {f + 1}: {exc}") from None
             step_times.append(time.perf_counter() - t0)
+            if scene.fast_notice and not fast_reported and notices is not None:
+                print(f"taichi-dcd: frame {f + 1}: {scene.fast_notice}", file=notices, flush=True)
+                fast_reported = True
             if scene.solver.contact_growths != growths and notices is not None:
                 growths = scene.solver.contact_growths
                 print(f"taichi-dcd: frame {f + 1}: contact buffer grown to {scene.solver.contacts.capacity} rows "
@@ -228,11 +231,11 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
                          contacts, speed))
             if writer:
                 writer.write(last_good)
-            if speed < SETTLE_SPEED:
+            if speed < sim.settle_speed:
                 calm_since = scene.time - sim.frame_dt if calm_since is None else calm_since
             else:
                 calm_since = None
-            settled = calm_since is not None and scene.time - calm_since >= SETTLE_TIME - 1e-9
+            settled = calm_since is not None and scene.time - calm_since >= sim.settle_time * (1 - 1e-9)
             now = time.perf_counter()
             if f == 0:
                 first_frame_end = now
@@ -282,6 +285,8 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "final_kinetic_energy": final[3],
         "energy_drift": energy_drift(energy_start, [r[3] for r in rows], [r[4] for r in rows]),
         "contact_buffer_growths": scene.solver.contact_growths,
+        "frames_with_extra_substeps": scene.fast_frames,
+        "most_substeps_in_a_frame": scene.most_substeps,
         "settings": {
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,
             "iterations": sim.iterations, "precision": runtime.precision(), "arch": runtime.settings()["arch"],

@@ -8,6 +8,8 @@ compiled kernels are dropped) and starts it anew.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 import taichi as ti
 
@@ -74,6 +76,54 @@ def init(
         _settings = None
         raise RuntimeError(f"Taichi could not start on arch {arch!r} on this machine")
     _settings = wanted
+
+
+# While a field_block is open: its FieldsBuilder and the fills waiting for finalize.
+_block: tuple | None = None
+
+
+@contextmanager
+def field_block():
+    """Allocate every field created by model.scalar_field / vec_field / mat_field inside
+    the block in one Taichi SNode tree, filled (`fill`) when the block closes. Taichi gives
+    each field made after the first kernel launch a tree of its own, and a program holds
+    only a few hundred: one tree per field let about twenty scenes be built in one process
+    before Taichi crashed. Nested blocks join the outermost."""
+    global _block
+    if _block is not None:
+        yield
+        return
+    builder, fills, placed = ti.FieldsBuilder(), [], []
+    _block = (builder, fills, placed)
+    try:
+        yield
+    finally:
+        _block = None
+    if placed:
+        builder.finalize()
+    for fld, data in fills:
+        fld.from_numpy(data)
+
+
+def in_field_block() -> bool:
+    return _block is not None
+
+
+def place(fld, shape) -> bool:
+    """Place a shapeless field in the open block (True), or do nothing (False)."""
+    if _block is None:
+        return False
+    _block[0].dense(ti.ij if isinstance(shape, tuple) else ti.i, shape).place(fld)
+    _block[2].append(fld)
+    return True
+
+
+def fill(fld, data: np.ndarray) -> None:
+    """fld.from_numpy(data), at the end of the open block if there is one."""
+    if _block is None:
+        fld.from_numpy(data)
+    else:
+        _block[1].append((fld, data))
 
 
 def ensure_init() -> None:

@@ -17,6 +17,7 @@ from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from .model import SOFT, STATIC
 from .shapes import make_shape
+from .tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_motion
 
 
 def rotation_matrix(degrees) -> np.ndarray:
@@ -76,8 +77,12 @@ class Scene:
                 raise SceneError(f"{config.source}: {exc}") from None
         self.warnings = builder.warnings  # one line per mesh repair
         self.model, self.state = builder.finalize()
-        self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase)
+        self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
+                                 length_scale=config.sim.length_scale)
         self.frame = 0
+        self.fast_frames = 0                  # frames run with more substeps than configured
+        self.most_substeps = config.sim.substeps
+        self.fast_notice: str | None = None   # why, the first time it happened
 
     @property
     def name(self) -> str:
@@ -93,13 +98,58 @@ class Scene:
 
     def step(self, frames: int = 1) -> int:
         """Advance `frames` frames of the scene's frame_dt, substeps and iterations; returns the
-        contact count of the last frame. Raises solver.SimulationError on NaN or explosion."""
+        contact count of the last frame. A frame in which bodies move too fast for discrete
+        detection runs more substeps (tunnelling.py; `fast_frames`, `most_substeps` and
+        `fast_notice` say so). Raises solver.SimulationError on NaN or explosion, or when a
+        body is too fast even for MAX_SUBSTEP_FACTOR times the substeps."""
         sim = self.config.sim
         count = 0
         for _ in range(frames):
-            count = self.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations)
+            substeps = self._substeps_for_next_frame()
+            count = self.solver.step_frame(sim.frame_dt, substeps, sim.iterations)
             self.frame += 1
         return count
+
+    def _substeps_for_next_frame(self) -> int:
+        """The scene's substeps, or more if the two fastest bodies could together move
+        more than TUNNEL_FRACTION of the thinnest body's thickness in one substep. A body's
+        motion over the frame is bounded by (|v| + |ω|·reach + |g|·dt)·dt."""
+        from .solver import SimulationError
+
+        sim = self.config.sim
+        bodies = self.model.bodies
+        if len(bodies) < 2:
+            return sim.substeps
+        speed = np.linalg.norm(self.body_velocities(), axis=1)
+        speed += np.linalg.norm(self.body_angular_velocities(), axis=1) * np.array([b.reach for b in bodies])
+        if self.model.has_soft:
+            vv = np.linalg.norm(self.state.vertex_v.to_numpy()[: self.model.n_vertices], axis=1)
+            for k, b in enumerate(bodies):
+                if b.kind == "soft":
+                    speed[k] = vv[b.vertex_start:b.vertex_start + b.vertex_count].max()
+        moving = np.array([b.kind != "static" for b in bodies])
+        speed = np.where(moving, speed + np.linalg.norm(sim.gravity) * sim.frame_dt, 0.0)
+        fastest = np.argsort(-speed)[:2]
+        motion = float(speed[fastest].sum()) * sim.frame_dt
+        thin = min(range(len(bodies)), key=lambda k: bodies[k].thickness)
+        needed = substeps_for_motion(motion, bodies[thin].thickness, sim.substeps)
+        if needed == sim.substeps:
+            return needed
+        fast = bodies[fastest[0]].name
+        if needed > MAX_SUBSTEP_FACTOR * sim.substeps:
+            raise SimulationError(
+                f"body {fast!r} moves {motion:.3g} m per frame ({speed[fastest[0]]:.3g} m/s), more than "
+                f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, {bodies[thin].thickness:.3g} m) "
+                f"in each of {MAX_SUBSTEP_FACTOR * sim.substeps} substeps: contacts would be missed; it needs "
+                f"--substeps {needed} (or a smaller frame_dt or a slower start) by t = {self.time:.4g} s")
+        self.fast_frames += 1
+        self.most_substeps = max(self.most_substeps, needed)
+        if self.fast_notice is None:
+            self.fast_notice = (f"body {fast!r} moves {motion / sim.substeps:.3g} m per substep, more than "
+                                f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, "
+                                f"{bodies[thin].thickness:.3g} m): frames like this run up to {needed} substeps "
+                                "so that no contact is missed")
+        return needed
 
     def body_vertices(self, name: str) -> np.ndarray:
         """World-space vertices (n, 3) of a body, in the order of `body_faces(name)`."""

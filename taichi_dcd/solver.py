@@ -33,7 +33,7 @@ from .broadphase import BOX_SLACK, boxes_overlap
 from .collision import CollisionPipeline
 from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
 from .contacts import ContactConstraints
-from .geometry import barycentric, longest_edge_sq
+from .geometry import barycentric, longest_edge_sq, snap_to_zero, straddles
 from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
 from .narrowphase import collide_triangle_pair
 from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
@@ -51,9 +51,13 @@ BRUTE_FORCE_MAX_PAIRS = 200_000
 # (the check is quadratic; large scenes' contacts rarely share points exactly).
 DEDUP_MAX_ROWS = 4096
 # Depth a contact did not make during its own substep (older penetration, or a depth
-# measured along a poor normal at a degenerate feature) is undone at most this fast (m/s):
-# pushing it out in one substep turns it into a launch velocity of depth/h.
+# measured along a poor normal at a degenerate feature) is undone at most this fast (m/s,
+# times √length_scale: motions of a scene scaled by L are √L as fast): pushing it out in
+# one substep turns it into a launch velocity of depth/h.
 DEPENETRATION_SPEED = 0.2
+# In a contact between bodies stacked on the ground, the lower body holds still when the
+# upper one is at least this many times heavier (XPBDSolver.takes_part).
+SHOCK_MASS_RATIO = 10.0
 # Contact rows a triangle pair can need: its deepest point and up to three more vertices.
 VERTEX_ROWS_PER_PAIR = 4
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
@@ -64,6 +68,28 @@ class SimulationError(RuntimeError):
     """The simulation produced NaN or left the bounds; message names frame and body."""
 
 
+@ti.func
+def touches(s: vec3) -> bool:
+    """Whether snapped signed distances s put a triangle against a plane without crossing
+    it: some exactly 0, none of one of the two signs."""
+    return (s.min() == 0.0 or s.max() == 0.0) and not straddles(s)
+
+
+@ti.func
+def deepest_vertex_behind(p0: vec3, p1: vec3, p2: vec3, q0: vec3, q1: vec3, q2: vec3, n_q: vec3, floor: float,
+                          reach: float, tol: float):
+    """(depth, vertex) of P's deepest vertex behind Q's plane by more than `floor` and at
+    most `reach`, that projects into Q (edges included); depth 0 if none."""
+    depth = 0.0
+    point = vec3(0.0)
+    for p in ti.static([p0, p1, p2]):
+        d = n_q.dot(q0 - p)
+        if d > floor and d <= reach and d > depth:
+            if barycentric(p + d * n_q, q0, q1, q2).min() >= -tol:
+                depth, point = d, p
+    return depth, point
+
+
 @ti.data_oriented
 class XPBDSolver:
     """Advances a State of a Model by frames of `substeps` XPBD substeps.
@@ -72,15 +98,18 @@ class XPBDSolver:
     small scenes, the uniform grid per substep for large ones), "brute" or "grid".
     contact_capacity: initial size of the contact buffer; it grows when a frame
     overflows it (the frame is then rerun from its start, so no contact is lost).
+    length_scale: the scene's size relative to metre-sized bodies (SimConfig.length_scale);
+    the depenetration speed scales with its square root.
     """
 
     def __init__(self, model: Model, state: State, gravity=(0.0, -9.8, 0.0), broad_phase: str = "auto",
-                 contact_capacity: int | None = None, bound: float = DEFAULT_BOUND):
+                 contact_capacity: int | None = None, bound: float = DEFAULT_BOUND, length_scale: float = 1.0):
         runtime.ensure_init()
         self.model = model
         self.state = state
         self.gravity = np.asarray(gravity, dtype=np.float64).reshape(3)
         self.bound = float(bound)
+        self.depenetration_speed = DEPENETRATION_SPEED * float(np.sqrt(length_scale))
         m = model
         kind = m.body_kind.to_numpy()[: m.n_bodies]
         tri_counts = np.array([b.tri_count for b in m.bodies])
@@ -92,17 +121,24 @@ class XPBDSolver:
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
-        self.tri_lo = vec_field(m.n_tris)
-        self.tri_hi = vec_field(m.n_tris)
-        self.body_lo = vec_field(m.n_bodies)
-        self.body_hi = vec_field(m.n_bodies)
-        self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
-        self.volume_lambda = scalar_field(m.n_bodies)
-        self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
-        # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
-        self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
-                           vec_field(m.n_bodies)]
-        self.saved_vertex = [vec_field(m.n_vertices), vec_field(m.n_vertices)] if m.has_soft else None
+        with runtime.field_block():  # one SNode tree for the solver's fields
+            self.tri_lo = vec_field(m.n_tris)
+            self.tri_hi = vec_field(m.n_tris)
+            self.body_lo = vec_field(m.n_bodies)
+            self.body_hi = vec_field(m.n_bodies)
+            self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
+            self.volume_lambda = scalar_field(m.n_bodies)
+            self.body_level = scalar_field(m.n_bodies, ti.i32)
+            self.body_mass = scalar_field(m.n_bodies)
+            self.body_thickness = scalar_field(m.n_bodies)
+            real = runtime.real_dtype()
+            runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
+            runtime.fill(self.body_thickness, np.array([min(b.thickness, 1e30) for b in m.bodies], real))
+            self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
+            # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
+            self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
+                               vec_field(m.n_bodies)]
+            self.saved_vertex = [vec_field(m.n_vertices), vec_field(m.n_vertices)] if m.has_soft else None
         if self.use_grid:
             tri_static = kind[m.tri_body_np] == STATIC
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
@@ -316,15 +352,60 @@ class XPBDSolver:
             hit, depth, normal, side, point = collide_triangle_pair(
                 self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]],
                 self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]])
+            t_m, t_o = ab[0], ab[1]
+            if side == 1:
+                t_m, t_o = ab[1], ab[0]
+            if side < 0:
+                found, t_m, t_o, depth, normal, point = self.touching_pair_contact(ab[0], ab[1])
+                side = ti.select(found, 0, -1)
             if side >= 0:
-                t_m, t_o = ab[0], ab[1]
-                if side == 1:
-                    t_m, t_o = ab[1], ab[0]
                 if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
                     self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
                                        c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                     n += 1
         return n
+
+    @ti.func
+    def touching_pair_contact(self, t_a: ti.i32, t_b: ti.i32):
+        """A contact the narrow phase reports as touching: one triangle crosses the other's
+        plane while the other only touches its plane (a vertex or an edge in it,
+        supplement Fig. 8). Alone, such a pair has no depth; between bodies it can hide a
+        real one: a box set down exactly on a block of the same footprint has its side
+        faces in the block's side planes, so every pair it forms with the block touches,
+        and the box would sink through unopposed. Returns (found, moved triangle, other
+        triangle, depth, normal, point): the crossing triangle's deepest vertex behind the
+        touching one, by more than tol·L and at most half the touching body's thickness,
+        projecting into it (edges included); add_vertex_contacts adds its other vertices."""
+        ia, ib = self.model.tri_indices[t_a], self.model.tri_indices[t_b]
+        a0, a1, a2 = self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]]
+        b0, b1, b2 = self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]]
+        tol = ti.static(runtime.tolerance())
+        size = ti.sqrt(ti.max(longest_edge_sq(a0, a1, a2), longest_edge_sq(b0, b1, b2)))
+        floor = tol * size
+        found = False
+        t_m, t_o = t_a, t_b
+        depth = 0.0
+        normal = vec3(0.0)
+        point = vec3(0.0)
+        cross_a = (a1 - a0).cross(a2 - a0)
+        cross_b = (b1 - b0).cross(b2 - b0)
+        if cross_a.norm() > floor * size and cross_b.norm() > floor * size:
+            n_a, n_b = cross_a.normalized(), cross_b.normalized()
+            s_a = snap_to_zero(vec3(n_b.dot(a0 - b0), n_b.dot(a1 - b0), n_b.dot(a2 - b0)), floor * floor)
+            s_b = snap_to_zero(vec3(n_a.dot(b0 - a0), n_a.dot(b1 - a0), n_a.dot(b2 - a0)), floor * floor)
+            # The crossing triangle moves: a static one would push the other body from its
+            # own side, a second copy of the same contact.
+            if straddles(s_a) and touches(s_b) and self.model.body_kind[self.model.tri_body[t_a]] != STATIC:
+                depth, point = deepest_vertex_behind(a0, a1, a2, b0, b1, b2, n_b, floor,
+                                                     0.5 * self.body_thickness[self.model.tri_body[t_b]], tol)
+                normal = n_b
+            elif straddles(s_b) and touches(s_a) and self.model.body_kind[self.model.tri_body[t_b]] != STATIC:
+                depth, point = deepest_vertex_behind(b0, b1, b2, a0, a1, a2, n_a, floor,
+                                                     0.5 * self.body_thickness[self.model.tri_body[t_a]], tol)
+                normal = n_a
+                t_m, t_o = t_b, t_a
+            found = depth > 0.0
+        return found, t_m, t_o, depth, normal, point
 
     @ti.func
     def add_vertex_contacts(self, n: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
@@ -363,7 +444,7 @@ class XPBDSolver:
     def is_duplicate(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, point: vec3,
                      c_tri: ti.template(), c_bary_moved: ti.template(), c_normal: ti.template()) -> bool:
         """Whether rows [0, n) already hold this constraint: same two bodies, same normal and
-        the same moved point (within the narrow phase's tolerance). A vertex or edge shared by
+        the same moved point (within √eps of the moved triangle's size). A vertex or edge shared by
         several triangles is reported by each triangle pair; projecting every copy would weigh
         that point several times and make the Gauss-Seidel result depend on the mesh's
         triangulation (a box dropped flat would spin). Checked only for n <= DEDUP_MAX_ROWS."""
@@ -371,7 +452,10 @@ class XPBDSolver:
         idx = self.model.tri_indices[t_moved]
         size = ti.sqrt(longest_edge_sq(self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]],
                                        self.state.vertex_x[idx[2]]))
-        tol = ti.static(runtime.tolerance())
+        # Copies of one point computed from different triangles differ by rounding, which
+        # no threshold at rounding level separates reliably (the same scene scaled by 1e-3
+        # rounds differently): √eps of the triangle's size merges them, and nothing else.
+        tol = ti.static(ti.sqrt(runtime.machine_eps()))
         found = False
         if n <= DEDUP_MAX_ROWS:
             for j in range(n):
@@ -381,6 +465,42 @@ class XPBDSolver:
                     p = self.anchor_world(tri[0], c_bary_moved[j], False)
                     found = (p - point).norm() <= tol * size
         return found
+
+    @ti.func
+    def compute_levels(self, n_contacts: ti.i32, c_tri: ti.template()):
+        """Each body's level in the contact graph: 0 for static bodies, 1 + the lowest level
+        of the bodies it touches otherwise, n_bodies for bodies that rest on nothing static
+        (shortest paths by repeated relaxation, serial)."""
+        n_b = ti.static(self.model.n_bodies)
+        for b in range(n_b):
+            self.body_level[b] = ti.select(self.model.body_kind[b] == STATIC, 0, n_b)
+        changed = True
+        rounds = 0
+        while changed and rounds < n_b:
+            changed = False
+            for k in range(n_contacts):
+                tri = c_tri[k]
+                bm, bo = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+                if self.body_level[bo] + 1 < self.body_level[bm]:
+                    self.body_level[bm] = self.body_level[bo] + 1
+                    changed = True
+                if self.body_level[bm] + 1 < self.body_level[bo]:
+                    self.body_level[bo] = self.body_level[bm] + 1
+                    changed = True
+            rounds += 1
+
+    @ti.func
+    def takes_part(self, t_self: ti.i32, t_other: ti.i32) -> float:
+        """1.0, or 0.0 if triangle t_self's body holds still in its contacts with t_other's:
+        shock propagation, for a body nearer the static ground (lower level) under one
+        SHOCK_MASS_RATIO times heavier or more. Gauss-Seidel would need about mass-ratio
+        sweeps to carry the heavy body's weight down through the light one; meanwhile the
+        heavy body drives the light one under the ground it rests on. The light body then
+        carries its own weight only: it is not pushed into motion by the heavy one."""
+        b_self, b_other = self.model.tri_body[t_self], self.model.tri_body[t_other]
+        held = (self.body_level[b_self] < self.body_level[b_other]
+                and self.body_mass[b_self] * SHOCK_MASS_RATIO <= self.body_mass[b_other])
+        return ti.select(held, 0.0, 1.0)
 
     @ti.func
     def solve_contact_normal(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
@@ -396,11 +516,12 @@ class XPBDSolver:
         p_o = self.anchor_world(tri[1], bo, False)
         c = ti.min(n.dot(p_o - p_m), c_budget[k])
         if c > 0.0:
-            w = self.anchor_inv_mass(tri[0], bm, p_m, n) + self.anchor_inv_mass(tri[1], bo, p_o, n)
+            f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+            w = f_m * self.anchor_inv_mass(tri[0], bm, p_m, n) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, n)
             if w > 0.0:
                 dl = c / w
-                self.anchor_move(tri[0], bm, p_m, dl * n)
-                self.anchor_move(tri[1], bo, p_o, -dl * n)
+                self.anchor_move(tri[0], bm, p_m, f_m * dl * n)
+                self.anchor_move(tri[1], bo, p_o, -f_o * dl * n)
                 c_lambda_n[k] += dl
                 c_budget[k] -= c
 
@@ -422,7 +543,8 @@ class XPBDSolver:
             length = slip.norm()
             if length > 0.0:
                 t = slip / length
-                w = self.anchor_inv_mass(tri[0], bm, p_m, t) + self.anchor_inv_mass(tri[1], bo, p_o, t)
+                f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+                w = f_m * self.anchor_inv_mass(tri[0], bm, p_m, t) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, t)
                 mu = 0.5 * (self.model.body_friction[self.model.tri_body[tri[0]]]
                             + self.model.body_friction[self.model.tri_body[tri[1]]])
                 if w > 0.0:
@@ -431,8 +553,8 @@ class XPBDSolver:
                     # when its own share is exceeded makes a box stick-slip down a gentle slope.
                     dl = ti.min(length / w, mu * c_lambda_n[k] - c_lambda_t[k])
                     if dl > 0.0:
-                        self.anchor_move(tri[0], bm, p_m, -dl * t)
-                        self.anchor_move(tri[1], bo, p_o, dl * t)
+                        self.anchor_move(tri[0], bm, p_m, -f_m * dl * t)
+                        self.anchor_move(tri[1], bo, p_o, f_o * dl * t)
                         c_lambda_t[k] += dl
 
     @ti.func
@@ -457,17 +579,18 @@ class XPBDSolver:
             if ti.abs(vn0) <= 2.0 * g_norm * h:
                 e = 0.0
             v = self.anchor_velocity(tri[0], bm, p_m) - self.anchor_velocity(tri[1], bo, p_o)
-            w_n = self.anchor_inv_mass(tri[0], bm, p_m, n) + self.anchor_inv_mass(tri[1], bo, p_o, n)
+            f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+            w_n = f_m * self.anchor_inv_mass(tri[0], bm, p_m, n) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, n)
             if w_n > 0.0:
                 impulse = ((ti.max(-e * vn0, 0.0) - v.dot(n)) / w_n) * n
-                self.anchor_kick(tri[0], bm, p_m, impulse)
-                self.anchor_kick(tri[1], bo, p_o, -impulse)
+                self.anchor_kick(tri[0], bm, p_m, f_m * impulse)
+                self.anchor_kick(tri[1], bo, p_o, -f_o * impulse)
             v = self.anchor_velocity(tri[0], bm, p_m) - self.anchor_velocity(tri[1], bo, p_o)
             vt = v - v.dot(n) * n
             vt_len = vt.norm()
             if vt_len > 0.0:
                 t = vt / vt_len
-                w_t = self.anchor_inv_mass(tri[0], bm, p_m, t) + self.anchor_inv_mass(tri[1], bo, p_o, t)
+                w_t = f_m * self.anchor_inv_mass(tri[0], bm, p_m, t) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, t)
                 if w_t > 0.0:
                     mu = 0.5 * (self.model.body_friction[body_m] + self.model.body_friction[body_o])
                     # The position pass already spent λ_t/h of the Coulomb bound μ·λ_n/h.
@@ -478,8 +601,8 @@ class XPBDSolver:
                     if new_len > bound:
                         new *= bound / new_len
                     c_impulse_t[k] = new
-                    self.anchor_kick(tri[0], bm, p_m, new - old)
-                    self.anchor_kick(tri[1], bo, p_o, old - new)
+                    self.anchor_kick(tri[0], bm, p_m, f_m * (new - old))
+                    self.anchor_kick(tri[1], bo, p_o, f_o * (old - new))
 
     @ti.func
     def solve_velocities(self, n_contacts: ti.i32, iterations: ti.i32, h: float, g_norm: float,
@@ -591,6 +714,7 @@ class XPBDSolver:
                 c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
                 c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template()):
         """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial loop)."""
+        self.compute_levels(n_contacts, c_tri)
         if ti.static(self.model.has_soft):
             for e in range(ti.static(self.model.n_edges)):
                 self.edge_lambda[e] = 0.0
@@ -612,7 +736,7 @@ class XPBDSolver:
 
     @ti.kernel
     def _frame_all_pairs(self, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3, first_kick: float,
-                         bound: float, c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
+                         bound: float, depenetration: float, c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
@@ -639,9 +763,9 @@ class XPBDSolver:
                     self.place_vertex(i)
                 n = self.candidate_pairs(c_tri)
                 most = ti.max(most, n)
-                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), DEPENETRATION_SPEED * h, c_tri, c_bary_moved,
+                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), depenetration * h, c_tri, c_bary_moved,
                                             c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                needed = self.add_vertex_contacts(n, DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other,
+                needed = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other,
                                                   c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                 most = ti.max(most, needed)
                 n = ti.min(needed, c_tri.shape[0])
@@ -673,7 +797,8 @@ class XPBDSolver:
             vertex_nd[i] = self.state.vertex_x[i]
 
     @ti.kernel
-    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, bound: float, n_pairs: ti.i32,
+    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, bound: float, depenetration: float,
+                     n_pairs: ti.i32,
                      p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
                      p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
                      p_point: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -695,12 +820,12 @@ class XPBDSolver:
                     t_m, t_o = ab[0], ab[1]
                     if side == 1:
                         t_m, t_o = ab[1], ab[0]
-                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], DEPENETRATION_SPEED * h,
+                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], depenetration * h,
                                        c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
                                        c_vn0)
                     n += 1
             # The buffer holds 4 rows per pair (_step_grid), so every vertex contact fits.
-            n = self.add_vertex_contacts(n, DEPENETRATION_SPEED * h, c_tri, c_bary_moved, c_bary_other, c_normal,
+            n = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                          c_lambda_t)
@@ -734,7 +859,8 @@ class XPBDSolver:
             self._save_state()
             while True:
                 most, count, status = (int(v) for v in self._frame_all_pairs(
-                    substeps, iterations, h, gravity, first_kick, self.bound, *self.contacts.arrays()))
+                    substeps, iterations, h, gravity, first_kick, self.bound, self.depenetration_speed,
+                    *self.contacts.arrays()))
                 if most <= self.contacts.capacity:
                     break
                 self._restore_state()
@@ -761,7 +887,7 @@ class XPBDSolver:
                 self.contacts.grow(VERTEX_ROWS_PER_PAIR * pc.count)
                 self.contact_growths += 1
             n, status = (int(v) for v in self._end_substep(
-                iterations, h, g_norm, self.bound, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
+                iterations, h, g_norm, self.bound, self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                 *self.contacts.arrays()))
             if status != 0:
                 break

@@ -1,4 +1,8 @@
-"""Shared fixtures: Taichi in debug mode (bounds checks), f64 unless a test asks for f32."""
+"""Shared fixtures: Taichi in debug mode (bounds checks), f64 unless a test asks for f32.
+
+Whole-scene runs (hundreds of frames) use `f64_scene` and `scene_run`, without debug
+mode: bounds checks make them ~4× slower, and every kernel they run is also run in
+debug mode by the solver's and the collision tests."""
 
 import numpy as np
 import pytest
@@ -9,6 +13,11 @@ import taichi_dcd
 @pytest.fixture
 def f64():
     taichi_dcd.init(arch="cpu", precision="f64", debug=True)
+
+
+@pytest.fixture
+def f64_scene():
+    taichi_dcd.init(arch="cpu", precision="f64", debug=False)
 
 
 @pytest.fixture
@@ -29,3 +38,30 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
     if np.linalg.det(q) < 0:
         q[:, 0] = -q[:, 0]
     return q
+
+
+@pytest.fixture(scope="session")
+def scene_run(tmp_path_factory):
+    """run(name, scale=1.0, precision="f64", **changes) → metrics (dict) of a built-in scene
+    run as `taichi-dcd run NAME --no-frames [--scale]` would, each at most
+    once per session; `changes` set SimConfig fields. The metrics carry "out", the folder."""
+    from taichi_dcd.builtin_scenes import scene_config
+    from taichi_dcd.config import scale_scene
+    from taichi_dcd.run import run_scene
+    from taichi_dcd.scene import Scene
+
+    done = {}
+
+    def run(name: str, scale: float = 1.0, precision: str = "f64", **changes) -> dict:
+        key = (name, scale, precision, tuple(sorted(changes.items())))
+        if key not in done:
+            taichi_dcd.init(arch="cpu", precision=precision, debug=False)
+            config = scale_scene(scene_config(name), scale) if scale != 1.0 else scene_config(name)
+            for field, value in changes.items():
+                setattr(config.sim, field, value)
+            out = tmp_path_factory.mktemp(f"{name}-x{scale:g}-{precision}")
+            metrics = run_scene(Scene(config), out, progress=None, notices=None)
+            done[key] = dict(metrics, out=out)
+        return done[key]
+
+    return run

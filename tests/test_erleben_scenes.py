@@ -2,37 +2,52 @@
 --no-frames`): no NaN, settled within 5 s, penetration by the independent measure
 (metrics.py) at most 1e-4 m and 1e-9 m³ at the end and 5 mm over the run.
 
-Only the scenes that pass today are here; the README's table lists every scene's figures
-and the issue notes say what fails for the others."""
+Every rigid scene runs here. The ones that fail today are strict expected failures with
+the reason (the README's table has their figures): when one starts passing, its entry
+must go. The soft scene is left out: its penetration measure alone takes ~10 minutes."""
 
 import json
 
 import pytest
 
 from taichi_dcd.cli import main
+from taichi_dcd.config import DEFAULT_ITERATIONS, DEFAULT_SUBSTEPS
+from taichi_dcd.metrics import verdict
 
-PASSING = ["spike-and-wedge", "wedges", "spike-in-hole", "spike-in-pit", "spike-in-crack"]
+RIGID_SCENES = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole", "spike-in-pit",
+                "spike-in-crack", "wedge-in-crack"]
+KNOWN_FAILING = {
+    "spikes": "the toppling spike's edge hits the standing spike's edge at ~1 m/s: 13.5 mm deep at that "
+              "impact (edge-edge contact, whose correction is capped at its measured depth)",
+    "wedge-in-crack": "the wedge chatters on the block's top edge and creeps at ~6e-3 m/s",
+}
 
 
-@pytest.mark.parametrize("name", PASSING)
-def test_scene_settles_without_penetrating(f64, name, tmp_path, capsys):
-    assert main(["run", name, "--no-frames", "--quiet", "--out", str(tmp_path)]) == 0
-    metrics = json.loads((tmp_path / "metrics.json").read_text())
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILING[n])) if n in KNOWN_FAILING else n
+    for n in RIGID_SCENES])
+def test_scene_settles_without_penetrating(scene_run, name):
+    metrics = scene_run(name)
     assert metrics["complete"] and not metrics["nan_detected"]
-    assert metrics["settled"] and metrics["time_to_settle"] <= 5.0 - 0.2
-    assert metrics["final_penetration_depth"] <= 1e-4
-    assert metrics["final_overlap_volume"] <= 1e-9
-    assert metrics["max_penetration_depth"] <= 5e-3
-    assert metrics["settings"]["substeps"] == 10 and metrics["settings"]["iterations"] == 16
-    assert (tmp_path / "final" / f"dropped_{'wedge' if name == 'wedges' else 'spike'}.obj").is_file()
-    assert "settled" in capsys.readouterr().out
+    assert metrics["settings"]["substeps"] == DEFAULT_SUBSTEPS
+    assert metrics["settings"]["iterations"] == DEFAULT_ITERATIONS
+    assert verdict(metrics) is None, verdict(metrics)
+    assert metrics["time_to_settle"] <= 5.0 - 0.2
+
+
+def test_run_command_reports_and_writes_the_run(f64, tmp_path, capsys):
+    assert main(["run", "spike-in-hole", "--no-frames", "--quiet", "--frames", "20", "--out", str(tmp_path)]) == 0
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["frames"] == 20 and metrics["complete"]
+    assert (tmp_path / "final" / "dropped_spike.obj").is_file()
+    assert len((tmp_path / "metrics.csv").read_text().splitlines()) == 21
+    assert "spike-in-hole: 20 frames" in capsys.readouterr().out
 
 
 def test_list_names_every_builtin_scene(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
-    for name in ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole", "spike-in-pit",
-                 "spike-in-crack", "wedge-in-crack", "soft-ball-on-spike"]:
+    for name in RIGID_SCENES + ["soft-ball-on-spike"]:
         assert name in out
 
 
