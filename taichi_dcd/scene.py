@@ -77,6 +77,7 @@ class Scene:
                 raise SceneError(f"{config.source}: {exc}") from None
         self.warnings = builder.warnings  # one line per mesh repair
         self.model, self.state = builder.finalize()
+        self.warnings += precision_warnings(self.model, self.vertices(), config.sim)
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
                                  length_scale=config.sim.length_scale)
         self.frame = 0
@@ -262,6 +263,34 @@ class Scene:
         bary = c.bary_moved.to_numpy()[:n].astype(np.float64)
         corners = self.vertices()[self.model.tri_indices_np[tri]]
         return np.einsum("nk,nkd->nd", bary, corners)
+
+
+# A scene whose coordinates f32 cannot resolve finely enough
+# for the settle test or the contact test's depth gets a warning (F32_NOISE of either).
+F32_NOISE = 0.1
+
+
+def precision_warnings(model, vertices: np.ndarray, sim) -> list[str]:
+    """Warnings for an f32 run whose position quantum eps·|x| (x: the moving bodies'
+    coordinates) makes velocities (x − x_prev)/h noisier than F32_NOISE of the settle speed,
+    or positions coarser than F32_NOISE of the contact test's final depth (1e-4 m ×
+    length_scale). On Erleben's scenes (|x| ≤ 3.5 m, h = 1 ms) the noise is ~4e-4 m/s, and
+    spike-in-crack never settles in f32."""
+    from .metrics import PASS_FINAL_DEPTH
+
+    if runtime.precision() != "f32" or not model.bodies:
+        return []
+    moving = np.concatenate([vertices[b.vertex_start:b.vertex_start + b.vertex_count]
+                             for b in model.bodies if b.kind != "static"] or [np.zeros((1, 3))])
+    quantum = float(np.finfo(np.float32).eps) * float(np.abs(moving).max())
+    h = sim.frame_dt / sim.substeps
+    noise = quantum / h
+    if noise > F32_NOISE * sim.settle_speed or quantum > F32_NOISE * PASS_FINAL_DEPTH * sim.length_scale:
+        return [f"f32 resolves positions here only to {quantum:.1e} m (coordinates up to "
+                f"{np.abs(moving).max():.3g} m), so velocities carry {noise:.1e} m/s of rounding noise "
+                f"against a settle speed of {sim.settle_speed:.0e} m/s: this scene may never settle or "
+                "may keep a visible depth; use --precision f64"]
+    return []
 
 
 def quat_to_matrix(q) -> np.ndarray:
