@@ -108,6 +108,7 @@ def plates(speed: float) -> dict:
          "position": [0.0, 1.0, 0.0], "velocity": [0.0, -speed, 0.0]}]}
 
 
+@pytest.mark.slow
 def test_thin_plate_too_fast_for_the_substeps_gets_more_substeps(f64_scene, tmp_path):
     """At 50 m/s a 1 cm plate would cross a 1 cm plate within one of the 10 substeps: the
     frames that fast run more substeps, and the plate lands on the other, not through it."""
@@ -165,6 +166,7 @@ COINCIDENT_JITTER = ("at edges that coincide exactly, Eq. 6 takes the tiny sidew
                      "by up to ~0.5 mm on the block instead of resting")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("support", [GROUND, pytest.param(SAME_FOOTPRINT, marks=pytest.mark.xfail(
     strict=True, reason=COINCIDENT_JITTER))], ids=["touching", "coincident-faces"])
 def test_box_touching_at_the_start_stays_put(f64_scene, tmp_path, support):
@@ -181,6 +183,7 @@ def test_box_touching_at_the_start_stays_put(f64_scene, tmp_path, support):
     assert m["final_max_vertex_speed"] < 1e-4
 
 
+@pytest.mark.slow
 def test_box_on_a_block_of_the_same_footprint_does_not_sink_through(f64_scene, tmp_path):
     """Every triangle pair of a box set exactly on a block of its own footprint only
     touches (its side faces lie in the block's side planes); without the solver's
@@ -192,6 +195,7 @@ def test_box_on_a_block_of_the_same_footprint_does_not_sink_through(f64_scene, t
     assert m["max_penetration_depth"] <= 1e-4
 
 
+@pytest.mark.slow
 def test_sliver_triangles_in_the_contact_face_are_harmless(f64_scene, tmp_path):
     """A box whose bottom face is fanned around a point 1e-12 from one edge, so that one
     triangle has ~1e-12 of the mean triangle area: dropped flat from 1 mm it settles flat
