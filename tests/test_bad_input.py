@@ -148,7 +148,10 @@ def test_interrupt_leaves_incomplete_metrics_and_readable_frames(tmp_path):
 
     env = dict(os.environ, ENABLE_TAICHI_HEADER_PRINT="False")
     proc = subprocess.Popen([sys.executable, "-m", "taichi_dcd", "run", "wedge-in-crack", "--quiet", "--out", "out"],
-                            cwd=tmp_path, stderr=subprocess.PIPE, text=True, env=env)
+                            cwd=tmp_path, stderr=subprocess.PIPE, text=True, env=env,
+                            # A child inherits an ignored SIGINT (pytest under nohup or CI), and
+                            # Python then never raises KeyboardInterrupt: give it the default back.
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 240
     while time.time() < deadline and len(list((tmp_path / "out" / "frames").glob("frame_*.png"))) < 5:
         time.sleep(0.2)
