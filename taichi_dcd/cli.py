@@ -214,7 +214,7 @@ def _cmd_sweep(args) -> int:
     from .builtin_scenes import ERLEBEN_SIX, scene_config
     from .config import SceneError
     from .run import OutputError
-    from .sweep import SweepError, parse_list, recommend, run_sweep, sweep_runs
+    from .sweep import SweepError, parse_list, recommend, run_failed, run_sweep, sweep_runs
 
     try:
         substeps = parse_list(args.substeps, int)
@@ -244,7 +244,7 @@ def _cmd_sweep(args) -> int:
               file=sys.stderr)
         return 1
     passed = sum(bool(r.get("passed")) for r in rows)
-    failed = [r for r in rows if str(r.get("verdict", "")).startswith(("failed", "error", "process", "ray"))]
+    failed = [r for r in rows if run_failed(r)]
     print(f"sweep: {len(rows)} runs, {passed} passed the contact test, {len(failed)} failed to run; "
           f"{args.out}/sweep.csv, {args.out}/pareto.png")
     best = recommend(rows)

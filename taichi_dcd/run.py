@@ -38,13 +38,18 @@ def run_files(body_names: list[str]) -> list[str]:
     return ["metrics.json", "metrics.csv", "animation.gif"] + [f"final/{n}.obj" for n in body_names]
 
 
-def manifest_files(folder: Path) -> list[str]:
-    """The files (relative paths) that folder's manifest says this tool wrote; [] without one."""
+def _manifest_list(folder: Path, key: str) -> list[str]:
+    """The strings under `key` in folder's manifest; [] without one."""
     try:
-        listed = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["files"]
+        listed = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))[key]
     except (OSError, ValueError, KeyError, TypeError):
         return []
     return [name for name in listed if isinstance(name, str)] if isinstance(listed, list) else []
+
+
+def manifest_files(folder: Path) -> list[str]:
+    """The files (relative paths) that folder's manifest says this tool wrote; [] without one."""
+    return _manifest_list(folder, "files")
 
 
 def _files_of_earlier_run(out: Path) -> set[Path]:
@@ -55,12 +60,8 @@ def _files_of_earlier_run(out: Path) -> set[Path]:
         return set()
     ours = {out / name for name in listed}
     ours |= set((out / "frames").glob(FRAME_PATTERN))
-    try:
-        folders = json.loads((out / MANIFEST).read_text(encoding="utf-8")).get("folders", [])
-    except (OSError, ValueError, AttributeError):
-        folders = []
-    for folder in folders if isinstance(folders, list) else []:
-        if isinstance(folder, str) and folder and ".." not in Path(folder).parts:
+    for folder in _manifest_list(out, "folders"):
+        if folder and ".." not in Path(folder).parts:
             ours |= {p for p in (out / folder).rglob("*") if p.is_file() or p.is_symlink()}
     ours |= {p.with_name(p.name + ".tmp") for p in list(ours)}
     return ours

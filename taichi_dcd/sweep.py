@@ -179,6 +179,15 @@ def _run_on_ray(jobs, address: str, workers: int, bar: ProgressBar) -> list[dict
         ray.shutdown()
 
 
+FAILED_PREFIXES = ("failed", "error", "process failed", "ray task failed")
+
+
+def run_failed(row: dict) -> bool:
+    """Whether a row's run did not complete (NaN, explosion, a bad scene, a lost process),
+    as opposed to completing and failing the contact test."""
+    return str(row.get("verdict", "")).startswith(FAILED_PREFIXES)
+
+
 def _failed_row(run: SweepRun, reason: str) -> dict:
     return {"scene": run.scene, "substeps": run.substeps, "iterations": run.iterations,
             "precision": run.precision, "passed": False, "verdict": reason}
@@ -292,7 +301,7 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
         color = colors(k % 10)
         mine = [r for r in rows if r["scene"] == scene and r.get("wall_time_per_sim_second")
                 and r.get("max_penetration_depth") is not None]
-        done = [r for r in mine if not str(r.get("verdict", "")).startswith(("failed", "error"))]
+        done = [r for r in mine if not run_failed(r)]
         for precision, face in (("f64", color), ("f32", "none")):
             pts = [r for r in done if r["precision"] == precision]
             if pts:
