@@ -85,20 +85,76 @@ SCENES: dict[str, tuple[str, dict]] = {
 # Erleben's six tests, in his order; `taichi-dcd run all` runs these and the variants.
 ERLEBEN_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in-crack", "wedge-in-crack"]
 
+# The pile's bed: a row of crack blocks (z from −4 to 0) beside two rows of hole blocks
+# (z from 0 to 4), 8 m wide; its bodies: spikes and wedges PILE_SCALE the Erleben size,
+# in PILE_LAYERS layers of PILE_GRID × PILE_GRID, alternating, turned at random.
+PILE_GRID = 5
+PILE_LAYERS = 4
+PILE_SCALE = 0.3
+PILE_SUBDIVISIONS = 3   # spikes 384, wedges 512, crack blocks 1,536, hole blocks 1,792 triangles
+HIRES_SUBDIVISIONS = 6  # spike 24,576, ground 49,152; the crack block takes one fewer (24,576)
+
+
+def _pile() -> dict:
+    """At least 100 spikes and wedges dropped onto a bed of cracks and holes, ≥ 50k
+    triangles (issue 6). Seeded, so every run builds the same pile."""
+    import numpy as np
+
+    rng = np.random.default_rng(2025)
+    refine = {"subdivisions": PILE_SUBDIVISIONS}
+    bodies = [{"name": "ground", "kind": "static", "shape": "ground", "params": {"size": [16.0, 1.0, 16.0]}}]
+    for i, x in enumerate((-3.0, -1.0, 1.0, 3.0)):
+        bodies.append({"name": f"crack_{i}", "kind": "static", "shape": "crack_block", "params": refine,
+                       "position": [x, 0.0, -2.0]})
+        for j, z in enumerate((1.0, 3.0)):
+            bodies.append({"name": f"hole_{i}_{j}", "kind": "static", "shape": "hole_block",
+                           "params": dict(refine, pit=bool((i + j) % 2)), "position": [x, 0.0, z]})
+    spacing = 8.0 / PILE_GRID
+    for layer in range(PILE_LAYERS):
+        for i in range(PILE_GRID):
+            for j in range(PILE_GRID):
+                shape = ("spike", "wedge")[(i + j + layer) % 2]
+                x, z = (-4.0 + spacing * (k + 0.5) + rng.uniform(-0.2, 0.2) for k in (i, j))
+                tilt = rng.uniform(-15.0, 15.0, 2)
+                bodies.append({"name": f"{shape}_{layer}_{i}_{j}", "kind": "rigid", "shape": shape, "params": refine,
+                               "scale": PILE_SCALE, "rotation": [180.0 + tilt[0], rng.uniform(0.0, 360.0), tilt[1]],
+                               "position": [x, 2.2 + 1.2 * layer, z]})
+    return {"sim": _sim(), "body": bodies}
+
+
+def _spike_in_crack_hires() -> dict:
+    """spike-in-crack with every body remeshed to ≥ 20k triangles (the same surfaces)."""
+    import copy
+
+    table = copy.deepcopy(SCENES["spike-in-crack"][1])
+    for body in table["body"]:
+        refine = HIRES_SUBDIVISIONS - (body["shape"] == "crack_block")
+        body["params"] = dict(body.get("params", {}), subdivisions=refine)
+    return table
+
+
+# Large scenes: built on demand (their tables are generated), listed, and left out of `all`.
+LARGE_SCENES = {
+    "pile": ("100 spikes and wedges (0.3 scale) dropped onto a bed of cracks and holes, ~65k triangles", _pile),
+    "spike-in-crack-hires": ("spike-in-crack with every body remeshed to >= 20k triangles", _spike_in_crack_hires),
+}
+
 
 def builtin_names() -> list[str]:
+    """The scenes `taichi-dcd run all` runs (not the large ones)."""
     return list(SCENES)
 
 
 def describe(name: str) -> str:
-    return SCENES[name][0]
+    return (SCENES.get(name) or LARGE_SCENES[name])[0]
 
 
 def builtin_scene(name: str) -> SceneConfig:
     """The SceneConfig of a built-in scene; KeyError for an unknown name."""
     import copy
 
-    return scene_from_dict(copy.deepcopy(SCENES[name][1]), name=name, where=f"built-in scene {name!r}")
+    table = copy.deepcopy(SCENES[name][1]) if name in SCENES else LARGE_SCENES[name][1]()
+    return scene_from_dict(table, name=name, where=f"built-in scene {name!r}")
 
 
 def scene_config(name: str) -> SceneConfig:
@@ -107,7 +163,7 @@ def scene_config(name: str) -> SceneConfig:
 
     from .config import SceneError, read_scene_file
 
-    if name in SCENES:
+    if name in SCENES or name in LARGE_SCENES:
         return builtin_scene(name)
     if not name.endswith(".toml") and "/" not in name and not os.path.exists(name):
         raise SceneError(f"unknown scene {name!r}: not a built-in scene (see `taichi-dcd list`) nor a file")

@@ -259,11 +259,13 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_list(args) -> int:
-    from .builtin_scenes import SCENES
+    from .builtin_scenes import LARGE_SCENES, SCENES
 
-    width = max(len(n) for n in SCENES)
+    width = max(len(n) for n in [*SCENES, *LARGE_SCENES])
     for name, (text, _) in SCENES.items():
         print(f"{name:<{width}}  {text}")
+    for name, (text, _) in LARGE_SCENES.items():
+        print(f"{name:<{width}}  {text} (not in `all`)")
     return 0
 
 

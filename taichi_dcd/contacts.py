@@ -88,7 +88,9 @@ class ContactConstraints(_GrowableBuffer):
     `bary_moved[k]`) to a point of the other triangle `tri[k][1]` (`bary_other[k]`);
     the moved point is pushed along the unit `normal[k]` until it reaches the other
     point's plane. `budget[k]` is how much more of C (m) it may correct this substep (see
-    solver.DEPENETRATION_SPEED), `lambda_n[k]`, `lambda_t[k]` the
+    solver.DEPENETRATION_SPEED); on a row with a soft body it is instead the depth (m) the
+    row may leave (a soft body's own constraints move the anchors back and forth between
+    sweeps, so a spent budget would stop the row halfway), `lambda_n[k]`, `lambda_t[k]` the
     normal and static-friction multipliers accumulated this substep (kg·m), `vn0[k]`
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s).

@@ -161,6 +161,24 @@ CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", 
                "contact_count", "max_vertex_speed"]
 
 
+class SettleClock:
+    """Whether a scene has settled: every vertex slower than sim.settle_speed (m/s, its
+    displacement over a frame / frame_dt) for sim.settle_time seconds."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.calm_since: float | None = None  # s: start of the frame since which all has been calm
+
+    def update(self, time_s: float, max_vertex_speed: float) -> bool:
+        """Feed the frame that ended at `time_s`; True once settled."""
+        if max_vertex_speed < self.sim.settle_speed:
+            if self.calm_since is None:
+                self.calm_since = time_s - self.sim.frame_dt
+        else:
+            self.calm_since = None
+        return self.calm_since is not None and time_s - self.calm_since >= self.sim.settle_time * (1 - 1e-9)
+
+
 def energy_drift(energy_start: float, kinetic, potential) -> float:
     """The largest rise of mechanical energy (kinetic + gravitational) above its value at
     the start, as a fraction of the largest kinetic energy reached: > 0 means the run gained
@@ -200,7 +218,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     rows = []
     error = None
     interrupted = False
-    calm_since = None           # time at which every vertex became slower than sim.settle_speed
+    clock = SettleClock(sim)
     settled = False
     max_depth = 0.0
     step_times = []             # wall time of each frame's simulation alone
@@ -232,11 +250,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
                          contacts, speed))
             if writer:
                 writer.write(last_good)
-            if speed < sim.settle_speed:
-                calm_since = scene.time - sim.frame_dt if calm_since is None else calm_since
-            else:
-                calm_since = None
-            settled = calm_since is not None and scene.time - calm_since >= sim.settle_time * (1 - 1e-9)
+            settled = clock.update(scene.time, speed)
             now = time.perf_counter()
             if f == 0:
                 first_frame_end = now
@@ -278,7 +292,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "max_penetration_depth": max_depth,
         "final_overlap_volume": final[2],
         "settled": settled,
-        "time_to_settle": calm_since if settled else None,
+        "time_to_settle": clock.calm_since if settled else None,
         "final_max_vertex_speed": final[6],
         "nan_detected": error is not None and "NaN" in error,
         "complete": error is None and not interrupted,

@@ -17,7 +17,7 @@ from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from .model import SOFT, STATIC
 from .shapes import make_shape
-from .tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_motion
+from .tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
 
 
 def rotation_matrix(degrees) -> np.ndarray:
@@ -71,7 +71,7 @@ class Scene:
                 builder.add_body(BodySpec(
                     name=body.name, vertices=mesh.vertices, faces=mesh.faces, kind=body.kind,
                     density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
-                    restitution=body.restitution, compliance=body.compliance,
+                    restitution=body.restitution, compliance=body.compliance, damping=body.damping,
                     source=str(config.base_dir / body.mesh) if body.mesh else None))
             except ValueError as exc:  # SceneError included
                 raise SceneError(f"{config.source}: {exc}") from None
@@ -112,45 +112,63 @@ class Scene:
         return count
 
     def _substeps_for_next_frame(self) -> int:
-        """The scene's substeps, or more if the two fastest bodies could together move
-        more than TUNNEL_FRACTION of the thinnest body's thickness in one substep. A body's
-        motion over the frame is bounded by (|v| + |ω|·reach + |g|·dt)·dt."""
+        """The scene's substeps, or more where discrete detection needs them: when the two
+        fastest bodies could together move more than TUNNEL_FRACTION of the thinnest body's
+        thickness in one substep (else a contact can be missed), and when two bodies that
+        can meet within the frame close in faster than sim.max_impact_motion per substep
+        (else the landing goes that deep). A body's motion over the frame is bounded by
+        (|v| + |ω|·reach + |g|·dt)·dt."""
         from .solver import SimulationError
 
         sim = self.config.sim
         bodies = self.model.bodies
         if len(bodies) < 2:
             return sim.substeps
-        speed = np.linalg.norm(self.body_velocities(), axis=1)
-        speed += np.linalg.norm(self.body_angular_velocities(), axis=1) * np.array([b.reach for b in bodies])
+        velocity = self.body_velocities()
+        spin = np.linalg.norm(self.body_angular_velocities(), axis=1) * np.array([b.reach for b in bodies])
+        x = self.state.vertex_x.to_numpy()[: self.model.n_vertices].astype(np.float64)
         if self.model.has_soft:
-            vv = np.linalg.norm(self.state.vertex_v.to_numpy()[: self.model.n_vertices], axis=1)
+            vv = self.state.vertex_v.to_numpy()[: self.model.n_vertices].astype(np.float64)
             for k, b in enumerate(bodies):
-                if b.kind == "soft":
-                    speed[k] = vv[b.vertex_start:b.vertex_start + b.vertex_count].max()
+                if b.kind == "soft":  # its particles' speeds about their mean velocity
+                    spin[k] = np.linalg.norm(vv[b.vertex_start:b.vertex_start + b.vertex_count] - velocity[k],
+                                             axis=1).max()
+        speed = np.linalg.norm(velocity, axis=1) + spin
         moving = np.array([b.kind != "static" for b in bodies])
         speed = np.where(moving, speed + np.linalg.norm(sim.gravity) * sim.frame_dt, 0.0)
         fastest = np.argsort(-speed)[:2]
         motion = float(speed[fastest].sum()) * sim.frame_dt
         thin = min(range(len(bodies)), key=lambda k: bodies[k].thickness)
         needed = substeps_for_motion(motion, bodies[thin].thickness, sim.substeps)
-        if needed == sim.substeps:
-            return needed
+        cap = MAX_SUBSTEP_FACTOR * sim.substeps
         fast = bodies[fastest[0]].name
-        if needed > MAX_SUBSTEP_FACTOR * sim.substeps:
+        if needed > cap:
             raise SimulationError(
                 f"body {fast!r} moves {motion:.3g} m per frame ({speed[fastest[0]]:.3g} m/s), more than "
                 f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, {bodies[thin].thickness:.3g} m) "
-                f"in each of {MAX_SUBSTEP_FACTOR * sim.substeps} substeps: contacts would be missed; it needs "
+                f"in each of {cap} substeps: contacts would be missed; it needs "
                 f"--substeps {needed} (or a smaller frame_dt or a slower start) by t = {self.time:.4g} s")
+        starts = np.array([b.vertex_start for b in bodies])
+        g_norm = float(np.linalg.norm(sim.gravity))
+        for_impact, a, b = substeps_for_impacts(np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts),
+                                                velocity, spin, moving, sim.frame_dt, g_norm, sim.max_impact_motion,
+                                                sim.substeps)
+        for_impact = min(for_impact, cap)  # deeper landings past this are the metrics' to report
+        if max(needed, for_impact) == sim.substeps:
+            return sim.substeps
         self.fast_frames += 1
-        self.most_substeps = max(self.most_substeps, needed)
+        self.most_substeps = max(self.most_substeps, needed, for_impact)
         if self.fast_notice is None:
-            self.fast_notice = (f"body {fast!r} moves {motion / sim.substeps:.3g} m per substep, more than "
-                                f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, "
-                                f"{bodies[thin].thickness:.3g} m): frames like this run up to {needed} substeps "
-                                "so that no contact is missed")
-        return needed
+            if needed >= for_impact:
+                self.fast_notice = (
+                    f"body {fast!r} moves {motion / sim.substeps:.3g} m per substep, more than "
+                    f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, {bodies[thin].thickness:.3g} m): "
+                    f"frames like this run up to {needed} substeps so that no contact is missed")
+            else:
+                self.fast_notice = (
+                    f"bodies {bodies[a].name!r} and {bodies[b].name!r} may close in by more than the impact "
+                    f"depth {sim.max_impact_motion:.3g} m: frames like this run up to {for_impact} substeps")
+        return max(needed, for_impact)
 
     def body_vertices(self, name: str) -> np.ndarray:
         """World-space vertices (n, 3) of a body, in the order of `body_faces(name)`."""

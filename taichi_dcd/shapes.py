@@ -4,7 +4,8 @@ trimesh.Trimesh without T-junctions (y up, metres).
 
 The Erleben shapes (spike, wedge, crack_block, hole_block, ground) stand on y = 0:
 their lowest face lies in that plane (the ground's top face does), centred on x and z.
-`box` and `icosphere` are centred on the origin.
+`box` and `icosphere` are centred on the origin. Every shape takes `subdivisions`:
+each face split that many times into four (the same surface, 4^n times the triangles).
 """
 
 import numpy as np
@@ -153,7 +154,24 @@ def make_shape(name: str, params: dict) -> trimesh.Trimesh:
     """The built-in shape `name` with keyword `params`; ValueError for an unknown name or parameter."""
     if name not in SHAPES:
         raise ValueError(f"unknown shape {name!r} (built-in: {', '.join(SHAPES)})")
+    params = dict(params)
+    refine = 0 if name in ("box", "icosphere") else params.pop("subdivisions", 0)
     try:
-        return SHAPES[name](**params)
+        mesh = SHAPES[name](**params)
     except TypeError as exc:
         raise ValueError(f"shape {name!r}: bad parameters {params} ({exc})") from None
+    return subdivided(mesh, refine)
+
+
+# Above this a shape would hold more than ~20 million triangles.
+MAX_SUBDIVISIONS = 10
+
+
+def subdivided(mesh: trimesh.Trimesh, times) -> trimesh.Trimesh:
+    """The mesh with each face split `times` times into four at its edge midpoints: the
+    same surface, still closed and without T-junctions (neighbours share the midpoints)."""
+    if isinstance(times, bool) or not isinstance(times, int) or not 0 <= times <= MAX_SUBDIVISIONS:
+        raise ValueError(f"subdivisions must be a whole number from 0 to {MAX_SUBDIVISIONS}, got {times!r}")
+    for _ in range(times):
+        mesh = mesh.subdivide()
+    return mesh

@@ -25,6 +25,8 @@ Small scenes run a whole frame (all its substeps) in one kernel with an in-kerne
 all-pairs box test; large ones use the uniform-grid `CollisionPipeline` each substep.
 """
 
+import time
+
 import numpy as np
 import taichi as ti
 
@@ -58,8 +60,10 @@ DEPENETRATION_SPEED = 0.2
 # In a contact between bodies stacked on the ground, the lower body holds still when the
 # upper one is at least this many times heavier (XPBDSolver.takes_part).
 SHOCK_MASS_RATIO = 10.0
-# Contact rows a triangle pair can need: its deepest point and up to three more vertices.
+# Contact rows a triangle pair can need: its deepest point and up to three more vertices
+# of the moved triangle, and with a soft body up to three of the other's.
 VERTEX_ROWS_PER_PAIR = 4
+VERTEX_ROWS_PER_PAIR_SOFT = 7
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
 
@@ -146,6 +150,9 @@ class XPBDSolver:
                                               contact_capacity=max(1024, m.n_tris))
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
         self.last_contact_count = 0
+        # Set to a dict to have the grid path add up the wall seconds of its phases
+        # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
+        self.phase_seconds: dict | None = None
 
     # ------------------------------------------------------------------ anchors
     @ti.func
@@ -275,6 +282,11 @@ class XPBDSolver:
         self.tri_hi[t] = hi + pad
 
     @ti.func
+    def involves_soft(self, t_a: ti.i32, t_b: ti.i32) -> bool:
+        return (self.model.body_kind[self.model.tri_body[t_a]] == SOFT
+                or self.model.body_kind[self.model.tri_body[t_b]] == SOFT)
+
+    @ti.func
     def write_contact(self, k: ti.i32, t_moved: ti.i32, t_other: ti.i32, depth: float, normal: vec3,
                       point: vec3, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
                       c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
@@ -282,7 +294,9 @@ class XPBDSolver:
         """Row k: the moved triangle's deepest point and the point C·N further on, on the
         other triangle, as barycentric anchors (Eq. 6 with −∇C = N). Its correction budget
         (m) is the depth the substep's own motion made plus `max_push` of older depth, and
-        no more than C itself unless the point is a vertex over the other triangle."""
+        no more than C itself unless the point is a vertex over the other triangle. With a
+        soft body the row holds the depth it may leave instead: the older depth less
+        `max_push` (ContactConstraints)."""
         im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
         bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
         target = point + depth * normal
@@ -295,13 +309,15 @@ class XPBDSolver:
         approach = normal.dot((target - self.anchor_world(t_other, bary_o, True))
                               - (point - self.anchor_world(t_moved, bary_m, True)))
         c_budget[k] = ti.max(approach, 0.0) + max_push
+        if self.involves_soft(t_moved, t_other):
+            c_budget[k] = ti.max(depth - approach - max_push, 0.0)
         # A vertex of the moved triangle over the other's face is a plain vertex-face contact,
         # and may correct more than its detected depth when its neighbours turn the body. Any
         # other deepest point (an edge crossing, a feature on a boundary) may carry a depth
         # measured along a poor normal: it corrects at most that depth.
         tol = ti.static(runtime.tolerance())
         at_vertex = bary_m.max() >= 1.0 - tol
-        if not (at_vertex and bary_o.min() >= -tol):
+        if not (at_vertex and bary_o.min() >= -tol) and not self.involves_soft(t_moved, t_other):
             c_budget[k] = ti.min(depth, c_budget[k])
         c_lambda_n[k] = 0.0
         c_lambda_t[k] = 0.0
@@ -438,6 +454,29 @@ class XPBDSolver:
                             self.write_contact(total, tri[0], tri[1], d, normal, v, max_push, c_tri, c_bary_moved,
                                                c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                         total += 1
+            # A soft triangle moved along a sharp feature's face normal can slide off the
+            # feature sideways while the feature's vertex stays inside it: the membrane
+            # wraps a spike's apex. The other triangle's vertices behind the soft one's
+            # plane (over its face, within half its body's thickness) push it out too.
+            b_m = self.model.tri_body[tri[0]]
+            if self.model.body_kind[b_m] == SOFT:
+                m0, m1, m2 = self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]]
+                cross_m = (m1 - m0).cross(m2 - m0)
+                if cross_m.norm() > 0.0:
+                    n_m = cross_m.normalized()
+                    for k in ti.static(range(3)):
+                        u = self.state.vertex_x[io[k]]
+                        d = n_m.dot(m0 - u)
+                        if d > 0.0 and d <= 0.5 * self.body_thickness[b_m]:
+                            w = barycentric(u + d * n_m, m0, m1, m2)
+                            if w.min() >= -tol and not self.is_duplicate(ti.min(total, c_tri.shape[0]), tri[1],
+                                                                        tri[0], n_m, u, c_tri, c_bary_moved,
+                                                                        c_normal):
+                                if total < c_tri.shape[0]:
+                                    self.write_contact(total, tri[1], tri[0], d, n_m, u, max_push, c_tri,
+                                                       c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                                                       c_lambda_t, c_vn0)
+                                total += 1
         return total
 
     @ti.func
@@ -514,7 +553,9 @@ class XPBDSolver:
         n = c_normal[k]
         p_m = self.anchor_world(tri[0], bm, False)
         p_o = self.anchor_world(tri[1], bo, False)
-        c = ti.min(n.dot(p_o - p_m), c_budget[k])
+        gap = n.dot(p_o - p_m)
+        soft = self.involves_soft(tri[0], tri[1])
+        c = ti.select(soft, gap - c_budget[k], ti.min(gap, c_budget[k]))
         if c > 0.0:
             f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
             w = f_m * self.anchor_inv_mass(tri[0], bm, p_m, n) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, n)
@@ -523,7 +564,8 @@ class XPBDSolver:
                 self.anchor_move(tri[0], bm, p_m, f_m * dl * n)
                 self.anchor_move(tri[1], bo, p_o, -f_o * dl * n)
                 c_lambda_n[k] += dl
-                c_budget[k] -= c
+                if not soft:
+                    c_budget[k] -= c
 
     @ti.func
     def solve_contact_friction(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
@@ -668,6 +710,39 @@ class XPBDSolver:
             self.state.vertex_v[i] = (self.state.vertex_x[i] - self.state.vertex_x_prev[i]) / h
 
     @ti.func
+    def damp_soft_body(self, b: ti.i32, h: float):
+        """Soft-body damping (Müller et al. 2007, §3.5): each particle loses the fraction
+        1 − exp(−damping·h) of its velocity relative to the body's rigid motion
+        v_cm + ω × r_i, ω = I⁻¹L; momentum and angular momentum are kept."""
+        rate = self.model.body_damping[b]
+        if self.model.body_kind[b] == SOFT and rate > 0.0:
+            lo, hi = self.model.body_vertex_range[b][0], self.model.body_vertex_range[b][1]
+            mass = 0.0
+            x_cm = vec3(0.0)
+            v_cm = vec3(0.0)
+            for i in range(lo, hi):
+                m = 1.0 / self.model.vertex_inv_mass[i]
+                mass += m
+                x_cm += m * self.state.vertex_x[i]
+                v_cm += m * self.state.vertex_v[i]
+            x_cm /= mass
+            v_cm /= mass
+            spin = vec3(0.0)
+            inertia = ti.Matrix.zero(float, 3, 3)
+            for i in range(lo, hi):
+                m = 1.0 / self.model.vertex_inv_mass[i]
+                r = self.state.vertex_x[i] - x_cm
+                spin += m * r.cross(self.state.vertex_v[i])
+                inertia += m * (r.dot(r) * ti.Matrix.identity(float, 3) - r.outer_product(r))
+            omega = vec3(0.0)
+            if ti.abs(inertia.determinant()) > 0.0:
+                omega = inertia.inverse() @ spin
+            k = 1.0 - ti.exp(-rate * h)
+            for i in range(lo, hi):
+                r = self.state.vertex_x[i] - x_cm
+                self.state.vertex_v[i] += k * (v_cm + omega.cross(r) - self.state.vertex_v[i])
+
+    @ti.func
     def state_is_sane(self, bound: float) -> ti.i32:
         """-1 - (index of the first body) whose state is NaN or beyond `bound`, else 0."""
         bad = 0
@@ -776,6 +851,8 @@ class XPBDSolver:
                 if ti.static(self.model.has_soft):
                     for i in range(ti.static(self.model.n_vertices)):
                         self.update_particle_velocity(i, h)
+                    for b in range(ti.static(self.model.n_bodies)):
+                        self.damp_soft_body(b, h)
                 self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
                                       c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
             for i in range(ti.static(self.model.n_vertices)):
@@ -824,7 +901,7 @@ class XPBDSolver:
                                        c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
                                        c_vn0)
                     n += 1
-            # The buffer holds 4 rows per pair (_step_grid), so every vertex contact fits.
+            # The buffer holds VERTEX_ROWS_PER_PAIR(_SOFT) rows per pair (_step_grid): every vertex contact fits.
             n = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
@@ -834,6 +911,8 @@ class XPBDSolver:
         if ti.static(self.model.has_soft):
             for i in range(ti.static(self.model.n_vertices)):
                 self.update_particle_velocity(i, h)
+            for b in range(ti.static(self.model.n_bodies)):
+                self.damp_soft_body(b, h)
         status = 0
         for _ in range(1):
             self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
@@ -879,16 +958,25 @@ class XPBDSolver:
         gravity = ti.Vector(list(self.gravity))
         g_norm = float(np.linalg.norm(self.gravity))
         n = status = 0
+        timing = self.phase_seconds
         for sub in range(substeps):
+            start = time.perf_counter()
             self._begin_substep(h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
-            self.pipeline.run(self.vertex_nd)
+            if timing is not None:
+                ti.sync()
+                timing["predict"] = timing.get("predict", 0.0) + time.perf_counter() - start
+            self.pipeline.run(self.vertex_nd, timing)
+            start = time.perf_counter()
             pc = self.pipeline.contacts
-            if VERTEX_ROWS_PER_PAIR * pc.count > self.contacts.capacity:
-                self.contacts.grow(VERTEX_ROWS_PER_PAIR * pc.count)
+            rows = VERTEX_ROWS_PER_PAIR_SOFT if self.model.has_soft else VERTEX_ROWS_PER_PAIR
+            if rows * pc.count > self.contacts.capacity:
+                self.contacts.grow(rows * pc.count)
                 self.contact_growths += 1
             n, status = (int(v) for v in self._end_substep(
                 iterations, h, g_norm, self.bound, self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                 *self.contacts.arrays()))
+            if timing is not None:
+                timing["projection"] = timing.get("projection", 0.0) + time.perf_counter() - start
             if status != 0:
                 break
         return n, status

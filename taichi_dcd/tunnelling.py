@@ -7,6 +7,11 @@ is nearer to that body's far side than to its near side, and the depth and norma
 narrow phase finds push it on through; a body thinner than one substep's motion can be
 passed without any pair ever intersecting. So a substep may move a body relative to any
 other by at most TUNNEL_FRACTION of the thinnest body's thickness.
+
+The same blindness sets how deep a landing goes: a body found overlapping another at the
+end of a substep has moved up to its relative motion in that substep past first contact.
+So while two bodies are within one frame's motion of each other, a substep may move them
+together by at most the scene's impact depth (SimConfig.max_impact_motion).
 """
 
 from __future__ import annotations
@@ -70,3 +75,33 @@ def substeps_for_motion(motion_per_frame: float, thinnest: float, substeps: int)
     if not (0 < motion_per_frame < math.inf) or not thinnest > 0:
         return substeps  # NaN or infinite speeds are the solver's explosion check's to report
     return max(substeps, math.ceil(motion_per_frame / (TUNNEL_FRACTION * thinnest)))
+
+
+def substeps_for_impacts(box_lo: np.ndarray, box_hi: np.ndarray, velocity: np.ndarray, spin: np.ndarray,
+                         moving: np.ndarray, frame_dt: float, g_norm: float, max_impact_motion: float,
+                         substeps: int) -> tuple[int, int, int]:
+    """The substeps a frame needs (at least `substeps`) so that no two bodies that can meet
+    in this frame close in by more than `max_impact_motion` m per substep.
+
+    box_lo, box_hi: (B, 3) world bounding boxes (m); velocity: (B, 3) linear velocities
+    (m/s); spin: (B,) bound on a surface point's speed relative to the body's velocity
+    (|ω|·reach, m/s); moving: (B,) bool, False for static bodies. Two bodies close in over
+    the frame by at most (|v_a − v_b| + spin_a + spin_b + |g|·dt)·dt, so bodies falling
+    side by side need nothing; they can meet when their boxes, grown by that, overlap.
+    Returns (substeps, a, b) with (a, b) the pair that needs them, or (substeps, -1, -1)."""
+    if len(spin) < 2 or not max_impact_motion > 0:
+        return substeps, -1, -1
+    lo, hi = np.asarray(box_lo, np.float64), np.asarray(box_hi, np.float64)
+    moving = np.asarray(moving, bool)
+    v = np.where(moving[:, None], np.asarray(velocity, np.float64), 0.0)
+    spin = np.where(moving, np.asarray(spin, np.float64), 0.0)
+    closing = np.linalg.norm(v[:, None, :] - v[None, :, :], axis=2) + spin[:, None] + spin[None, :] + g_norm * frame_dt
+    pair_motion = np.nan_to_num(closing * frame_dt, nan=0.0, posinf=0.0)  # NaN: the explosion check's to report
+    gap = np.maximum(lo[:, None, :] - hi[None, :, :], lo[None, :, :] - hi[:, None, :]).max(axis=2)
+    meet = (gap <= pair_motion) & (moving[:, None] | moving[None, :])
+    np.fill_diagonal(meet, False)
+    need = np.where(meet, np.ceil(pair_motion / max_impact_motion), 0.0)
+    a, b = np.unravel_index(int(np.argmax(need)), need.shape)
+    if need[a, b] <= substeps:
+        return substeps, -1, -1
+    return int(need[a, b]), int(a), int(b)

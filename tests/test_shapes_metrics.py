@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from taichi_dcd import shapes
-from taichi_dcd.metrics import pair_penetration, scene_penetration
+from taichi_dcd.metrics import distance_to_surface, pair_penetration, scene_penetration
 from taichi_dcd.scene import rotation_matrix
 
 
@@ -24,6 +24,9 @@ def placed(mesh, rotation=(0.0, 0.0, 0.0), position=(0.0, 0.0, 0.0)):
     ("hole_block", {}, 4.0 - 0.5, [[-1, 0, -1], [1, 1, 1]]),
     ("hole_block", {"pit": True}, 4.0 - 0.5 / 3, [[-1, 0, -1], [1, 1, 1]]),
     ("ground", {"size": [12.0, 1.0, 12.0]}, 144.0, [[-6, -1, -6], [6, 0, 6]]),
+    ("spike", {"subdivisions": 3}, 1.0, [[-0.5, 0, -0.5], [0.5, 3, 0.5]]),
+    ("crack_block", {"subdivisions": 2}, 8.0 - 0.5 * 1.0 * 0.5 * 4.0, [[-1, 0, -2], [1, 1, 2]]),
+    ("hole_block", {"pit": True, "subdivisions": 2}, 4.0 - 0.5 / 3, [[-1, 0, -1], [1, 1, 1]]),
 ])
 def test_shape_is_a_closed_outward_solid_of_the_stated_size(name, params, volume, bounds):
     mesh = shapes.make_shape(name, params)
@@ -33,6 +36,14 @@ def test_shape_is_a_closed_outward_solid_of_the_stated_size(name, params, volume
     # Watertight with every edge shared by exactly two faces also rules out T-junctions.
     assert mesh.volume == pytest.approx(volume, rel=1e-12)
     np.testing.assert_allclose(mesh.bounds, bounds, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["spike", "wedge", "crack_block", "hole_block"])
+def test_subdivisions_split_every_face_into_four_on_the_same_surface(name):
+    coarse, fine = shapes.make_shape(name, {}), shapes.make_shape(name, {"subdivisions": 2})
+    assert len(fine.faces) == 16 * len(coarse.faces)
+    # Every fine vertex lies on the coarse surface.
+    assert distance_to_surface(np.asarray(fine.vertices), coarse).max() <= 1e-12
 
 
 def test_crack_groove_opens_at_ninety_degrees():
@@ -50,6 +61,9 @@ def test_bad_shape_parameters_are_named():
         shapes.spike(height=0.0)
     with pytest.raises(ValueError, match="unknown shape"):
         shapes.make_shape("cone", {})
+    for bad in (-1, 1.5, 11, True):
+        with pytest.raises(ValueError, match="subdivisions must be a whole number"):
+            shapes.make_shape("wedge", {"subdivisions": bad})
 
 
 def test_vertex_pushed_into_a_face_gives_its_depth():
