@@ -121,17 +121,19 @@ def momenta(scene: Scene):
 
 def test_free_collision_conserves_linear_momentum(f64):
     """Two boxes meet off-centre without gravity: the impact turns them, and total linear
-    momentum holds to 1e-9 relative. (Angular momentum does not yet hold: it changes by ~30%
-    in this collision; see README, known problems.)"""
+    momentum holds to 1e-9 relative. Angular momentum holds only to 1% (0.5% seen; 0.2%
+    without friction, less with more substeps), not the 1e-6 issue 4 asks; see README,
+    known problems."""
     scene = make_scene([
         box("a", (0.2, 0.2, 0.2), (-0.3, 0.05, 0.0), velocity=[2.0, 0.0, 0.0]),
         box("b", (0.3, 0.1, 0.2), (0.3, -0.05, 0.02), velocity=[-1.0, 0.0, 0.0], density=500.0),
     ], gravity=[0.0, 0.0, 0.0])
-    p0, _ = momenta(scene)
+    p0, l0 = momenta(scene)
     scene.step(40)
-    p1, _ = momenta(scene)
+    p1, l1 = momenta(scene)
     assert np.linalg.norm(scene.body_angular_velocities()[0]) > 0.1  # the collision did happen off-centre
     assert np.linalg.norm(p1 - p0) <= 1e-9 * np.linalg.norm(p0)
+    assert np.linalg.norm(l1 - l0) <= 1e-2 * np.linalg.norm(l0)
 
 
 def test_tilted_box_lands_on_an_edge_and_settles_on_a_face(f64):
