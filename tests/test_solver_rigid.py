@@ -1,5 +1,9 @@
 """XPBD rigid bodies against answers known in advance: free fall, resting contact,
-Coulomb friction on an incline, momentum conservation, and a tilted box settling flat."""
+Coulomb friction on an incline, momentum conservation, and a tilted box settling flat.
+
+Free fall and the free collision run in Taichi's debug mode (bounds checks through the
+frame kernel, contacts included); the others run whole scenes without it (`f64_scene`):
+each debug-mode scene compiles its kernel for ~45 s here."""
 
 import math
 
@@ -38,7 +42,7 @@ def test_free_fall_follows_the_parabola_exactly(f64):
         np.testing.assert_allclose(scene.body_rotations()[0], [1.0, 0.0, 0.0, 0.0], atol=1e-12)
 
 
-def test_box_dropped_flat_rests_on_the_block_without_drift(f64):
+def test_box_dropped_flat_rests_on_the_block_without_drift(f64_scene):
     """A 0.2 m box dropped 5 cm onto a static block comes to rest with its bottom face on the
     block's top face (within 1e-5 of its size), unrotated, then holds still for 1,000 frames:
     moves less than 1e-5 of its size and keeps its kinetic energy below 1e-8 of the impact energy."""
@@ -77,7 +81,7 @@ def downhill_distance(scene: Scene, theta_deg: float) -> float:
 
 
 @pytest.mark.parametrize("theta_deg", [15.0, 20.0])
-def test_box_stays_on_incline_below_the_friction_angle(f64, theta_deg):
+def test_box_stays_on_incline_below_the_friction_angle(f64_scene, theta_deg):
     """tan θ < μ = 0.5 (θ < 26.57°): static friction holds the box (moves < 0.1 mm in 1 s).
     Closer to the friction angle the box creeps (4e-5 m/s at 22°, 9e-4 m/s at 25°)."""
     scene = incline_scene(theta_deg, mu=0.5)
@@ -87,7 +91,7 @@ def test_box_stays_on_incline_below_the_friction_angle(f64, theta_deg):
 
 
 @pytest.mark.parametrize("theta_deg", [30.0, 40.0])
-def test_box_slides_down_incline_with_coulomb_acceleration(f64, theta_deg):
+def test_box_slides_down_incline_with_coulomb_acceleration(f64_scene, theta_deg):
     """tan θ > μ = 0.5: the box slides with a = g(sin θ − μ cos θ), within 2%."""
     mu = 0.5
     scene = incline_scene(theta_deg, mu)
@@ -136,7 +140,7 @@ def test_free_collision_conserves_linear_momentum(f64):
     assert np.linalg.norm(l1 - l0) <= 1e-2 * np.linalg.norm(l0)
 
 
-def test_tilted_box_lands_on_an_edge_and_settles_on_a_face(f64):
+def test_tilted_box_lands_on_an_edge_and_settles_on_a_face(f64_scene):
     """Dropped turned 30° about z, the box lands on an edge, tips over and comes to rest on a
     face: four vertices on the block and four a box height above (within 1e-4 of the size; seen:
     3e-6 m)."""

@@ -1,7 +1,10 @@
 """XPBD soft bodies: internal constraints (edges, volume) and motion without contacts.
 
 Resting contact of soft bodies on flat faces is not solved yet (see README): a flat patch
-pressed against a parallel face stops intersecting it and sags through."""
+pressed against a parallel face stops intersecting it and sags through.
+
+The flight test runs in Taichi's debug mode (bounds checks through the soft kernels); the
+damping and impact tests run whole scenes without it (`f64_scene`, ~4× faster)."""
 
 import numpy as np
 
@@ -62,7 +65,7 @@ def ball_motion(scene: Scene, name: str):
     return (m * v).sum(axis=0), (m * np.cross(x, v)).sum(axis=0), 0.5 * float((m * rest * rest).sum())
 
 
-def test_damping_stills_the_wobble_and_keeps_both_momenta(f64):
+def test_damping_stills_the_wobble_and_keeps_both_momenta(f64_scene):
     """Damping (1/s) takes a soft body's particles towards its rigid motion: linear
     momentum stays (1e-9 relative), angular momentum drifts no more than the undamped
     body's own (XPBD projects along gradients at the end of the substep: ~2e-3 here), and
@@ -86,7 +89,7 @@ def test_damping_stills_the_wobble_and_keeps_both_momenta(f64):
     assert wobble["ball1"] < 0.01 * wobble["ball0"]
 
 
-def test_soft_ball_dropped_on_a_spike_is_not_skewered_at_impact(f64):
+def test_soft_ball_dropped_on_a_spike_is_not_skewered_at_impact(f64_scene):
     """The soft-ball-on-spike scene through its impact (first contact at 0.45 s, 4.4 m/s):
     the apex meets the ball's lowest vertex and dents the ball instead of passing into it.
     Each moved soft triangle's contact could push it off the apex sideways while the apex
@@ -98,7 +101,7 @@ def test_soft_ball_dropped_on_a_spike_is_not_skewered_at_impact(f64):
     scene = Scene(builtin_scene("soft-ball-on-spike"))
     scene.step(46)
     depths = []
-    for frames, measure in ((1, True), (3, True), (5, False), (15, False)):
+    for frames, measure in ((4, True), (5, False), (15, False)):
         scene.step(frames)
         if measure:
             depths.append(scene.penetration().depth)
