@@ -156,8 +156,9 @@ def test_long_rest_in_the_crack_neither_drifts_nor_gains_energy(f64_scene):
     scene.step(200)
     start = scene.body_vertices("dropped_spike")
     energy = scene.kinetic_energy() + scene.potential_energy()
+    before = scene.solver.state.substeps_done  # the landing frames took extra substeps
     scene.step(10_000)
-    assert scene.solver.state.substeps_done == 10 * 10_200
+    assert scene.solver.state.substeps_done - before == 100_000  # resting takes none
     assert np.abs(scene.body_vertices("dropped_spike") - start).max() < 1e-6
     weight = scene.model.bodies[scene.model.body_index("dropped_spike")].mass * 9.8
     assert scene.kinetic_energy() < 1e-12
