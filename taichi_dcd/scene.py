@@ -126,7 +126,7 @@ class Scene:
             return sim.substeps
         velocity = self.body_velocities()
         spin = np.linalg.norm(self.body_angular_velocities(), axis=1) * np.array([b.reach for b in bodies])
-        x = self.state.vertex_x.to_numpy()[: self.model.n_vertices].astype(np.float64)
+        x = self.vertices()
         if self.model.has_soft:
             vv = self.state.vertex_v.to_numpy()[: self.model.n_vertices].astype(np.float64)
             for k, b in enumerate(bodies):

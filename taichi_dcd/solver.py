@@ -424,6 +424,29 @@ class XPBDSolver:
         return found, t_m, t_o, depth, normal, point
 
     @ti.func
+    def vertex_over_face(self, total: ti.i32, t_moved: ti.i32, t_other: ti.i32, v: vec3, normal: vec3, q0: vec3,
+                         q1: vec3, q2: vec3, max_depth: float, max_push: float, c_tri: ti.template(),
+                         c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
+                         c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                         c_vn0: ti.template()) -> ti.i32:
+        """Vertex v of t_moved as a contact against the face (q0, q1, q2) of t_other, plane
+        normal `normal`: when it lies behind the plane by 0 < d ≤ max_depth, projects onto the
+        face (edges included) and is not already a row. Writes row `total` if it fits;
+        returns the rows needed so far."""
+        tol = ti.static(runtime.tolerance())
+        rows = total
+        d = normal.dot(q0 - v)
+        if d > 0.0 and d <= max_depth:
+            w = barycentric(v + d * normal, q0, q1, q2)
+            if w.min() >= -tol and not self.is_duplicate(ti.min(rows, c_tri.shape[0]), t_moved, t_other, normal, v,
+                                                         c_tri, c_bary_moved, c_normal):
+                if rows < c_tri.shape[0]:
+                    self.write_contact(rows, t_moved, t_other, d, normal, v, max_push, c_tri, c_bary_moved,
+                                       c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                rows += 1
+        return rows
+
+    @ti.func
     def add_vertex_contacts(self, n: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
                             c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                             c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
@@ -444,16 +467,9 @@ class XPBDSolver:
             im, io = self.model.tri_indices[tri[0]], self.model.tri_indices[tri[1]]
             o0, o1, o2 = self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]]
             for k in ti.static(range(3)):
-                v = self.state.vertex_x[im[k]]
-                d = normal.dot(o0 - v)
-                if d > 0.0 and d <= depth_main * (1.0 + tol):
-                    w = barycentric(v + d * normal, o0, o1, o2)
-                    if w.min() >= -tol and not self.is_duplicate(ti.min(total, c_tri.shape[0]), tri[0], tri[1], normal,
-                                                                v, c_tri, c_bary_moved, c_normal):
-                        if total < c_tri.shape[0]:
-                            self.write_contact(total, tri[0], tri[1], d, normal, v, max_push, c_tri, c_bary_moved,
-                                               c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                        total += 1
+                total = self.vertex_over_face(total, tri[0], tri[1], self.state.vertex_x[im[k]], normal, o0, o1, o2,
+                                              depth_main * (1.0 + tol), max_push, c_tri, c_bary_moved, c_bary_other,
+                                              c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
             # A soft triangle moved along a sharp feature's face normal can slide off the
             # feature sideways while the feature's vertex stays inside it: the membrane
             # wraps a spike's apex. The other triangle's vertices behind the soft one's
@@ -465,18 +481,10 @@ class XPBDSolver:
                 if cross_m.norm() > 0.0:
                     n_m = cross_m.normalized()
                     for k in ti.static(range(3)):
-                        u = self.state.vertex_x[io[k]]
-                        d = n_m.dot(m0 - u)
-                        if d > 0.0 and d <= 0.5 * self.body_thickness[b_m]:
-                            w = barycentric(u + d * n_m, m0, m1, m2)
-                            if w.min() >= -tol and not self.is_duplicate(ti.min(total, c_tri.shape[0]), tri[1],
-                                                                        tri[0], n_m, u, c_tri, c_bary_moved,
-                                                                        c_normal):
-                                if total < c_tri.shape[0]:
-                                    self.write_contact(total, tri[1], tri[0], d, n_m, u, max_push, c_tri,
-                                                       c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
-                                                       c_lambda_t, c_vn0)
-                                total += 1
+                        total = self.vertex_over_face(total, tri[1], tri[0], self.state.vertex_x[io[k]], n_m, m0, m1,
+                                                      m2, 0.5 * self.body_thickness[b_m], max_push, c_tri,
+                                                      c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                                                      c_lambda_t, c_vn0)
         return total
 
     @ti.func
