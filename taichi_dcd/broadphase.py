@@ -23,9 +23,12 @@ import taichi as ti
 
 from . import runtime
 from .geometry import vec3
+from .launch import Launcher
 
 ivec2 = ti.types.vector(2, ti.i32)
 ivec3 = ti.types.vector(3, ti.i32)
+# A triangle (vertex 0, 1, 2, body, group); an entry (triangle, body, cell x, y, z).
+ivec5 = ti.types.vector(5, ti.i32)
 
 MOVING = 0
 STATIC = 1
@@ -80,297 +83,278 @@ def boxes_overlap(lo_a: vec3, hi_a: vec3, lo_b: vec3, hi_b: vec3) -> bool:
     return all(lo_a <= hi_b) and all(lo_b <= hi_a)
 
 
+@ti.func
+def level_of(lo: vec3, hi: vec3, inv_h0: float) -> ti.i32:
+    """The smallest level whose cells are at least as large as the box's largest extent."""
+    extent = (hi - lo).max() * inv_h0
+    level = 0
+    size = 1.0
+    while level < LEVELS - 1 and extent > size:
+        level += 1
+        size *= 2.0
+    return level
+
+
 @ti.kernel
-def _triangle_boxes(
+def _bin_group(
     particle_x: ti.types.ndarray(dtype=vec3, ndim=1),
     particle_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    tri_indices: ti.types.ndarray(dtype=ivec3, ndim=1),
-    tri_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    tri_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    body_static: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri: ti.types.ndarray(dtype=ivec5, ndim=1),
+    tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    body_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    body_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
+    bucket_end: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    bucket_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
+    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    entry_key: ti.types.ndarray(dtype=ivec5, ndim=1),
+    entry_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    active: ti.types.ndarray(dtype=ti.i32, ndim=1),
     group: ti.i32,
     margin: float,
     inv_h0: float,
-    box_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    box_hi: ti.types.ndarray(dtype=vec3, ndim=1),
-    body_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    body_hi: ti.types.ndarray(dtype=vec3, ndim=1),
-    tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    level_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
     serial: ti.template(),
 ) -> ti.i32:
-    """Boxes of one group's bodies (from their vertices) and triangles, and each triangle's
-    level, or -1 for a moving triangle whose box meets no other body's box (it can have
-    no pair, so it is neither binned nor queried); returns the group's number of
-    (cell, triangle) entries."""
-    n_bodies = body_lo.shape[0]
+    """Hash table of one group's triangles, in one launch (kernel launches cost more than a
+    small query's work): boxes of the group's bodies (from their vertices) and triangles,
+    each triangle's level (-1 for a moving triangle whose box meets no other body's box: it
+    can have no pair), count per bucket with the range of bodies in it, prefix sum
+    (blocked; serial over blocks), scatter. Each entry carries its triangle's body, cell
+    and box, so that scanning a bucket reads contiguous memory. Returns the number of
+    (cell, triangle) entries; if that exceeds the entry capacity nothing is scattered and
+    the caller grows the table and runs again."""
+    n_bodies = body_box.shape[0]
+    n_buckets = bucket_bodies.shape[0]
+    mask = n_buckets - 1
+    capacity = entry_key.shape[0]
     slack = ti.static(BOX_SLACK * runtime.tolerance())
     ti.loop_config(serialize=True)
-    for level in range(LEVELS):
-        level_count[group, level] = 0
+    for level in range(LEVELS + 2):
+        group_count[group, level] = 0
     ti.loop_config(serialize=True)
     for k in range(n_bodies):
-        if body_static[k] == group:
-            body_lo[k] = vec3(ti.math.inf)
-            body_hi[k] = vec3(-ti.math.inf)
+        if body_group[k] == group:
+            body_box[k, 0] = vec3(ti.math.inf)
+            body_box[k, 1] = vec3(-ti.math.inf)
+    cull = group == MOVING and n_bodies <= CULL_MAX_BODIES
+    n_particles = particle_body.shape[0] if cull or group == STATIC else 0
     ti.loop_config(serialize=serial)
-    for v in range(particle_body.shape[0]):
+    for v in range(n_particles):
         k = particle_body[v]
-        if k >= 0 and body_static[k] == group:
+        if k >= 0 and body_group[k] == group:
             p = particle_x[v]
-            ti.atomic_min(body_lo[k], p)
-            ti.atomic_max(body_hi[k], p)
+            ti.atomic_min(body_box[k, 0], p)
+            ti.atomic_max(body_box[k, 1], p)
     # A body's pad is at least that of any of its triangles.
     ti.loop_config(serialize=True)
     for k in range(n_bodies):
-        if body_static[k] == group:
-            pad = margin + slack * (body_hi[k] - body_lo[k]).max()
-            body_lo[k] -= pad
-            body_hi[k] += pad
+        if body_group[k] == group:
+            pad = margin + slack * (body_box[k, 1] - body_box[k, 0]).max()
+            body_box[k, 0] -= pad
+            body_box[k, 1] += pad
+    ti.loop_config(serialize=serial)
+    for b in range(n_buckets + 1):
+        bucket_end[b] = 0
+    ti.loop_config(serialize=serial)
+    for b in range(n_buckets):
+        bucket_bodies[b] = ivec2(2147483647, -1)
     entries = 0
     ti.loop_config(serialize=serial)
-    for t in range(tri_indices.shape[0]):
-        if tri_group[t] == group:
-            i = tri_indices[t]
-            p0, p1, p2 = particle_x[i[0]], particle_x[i[1]], particle_x[i[2]]
+    for t in range(tri.shape[0]):
+        info = tri[t]
+        if info[4] == group:
+            p0, p1, p2 = particle_x[info[0]], particle_x[info[1]], particle_x[info[2]]
             lo = ti.min(p0, p1, p2)
             hi = ti.max(p0, p1, p2)
             pad = margin + slack * (hi - lo).max()
             lo -= pad
             hi += pad
-            box_lo[t] = lo
-            box_hi[t] = hi
-            active = group == STATIC or n_bodies > CULL_MAX_BODIES
-            if not active:
-                b = tri_body[t]
+            body = info[3]
+            is_active = not cull
+            if cull:
                 for k in range(n_bodies):
-                    if k != b and boxes_overlap(lo, hi, body_lo[k], body_hi[k]):
-                        active = True
+                    if k != body and boxes_overlap(lo, hi, body_box[k, 0], body_box[k, 1]):
+                        is_active = True
             level = -1
-            if active:
-                extent = (hi - lo).max() * inv_h0
-                level = 0
-                size = 1.0
-                while level < LEVELS - 1 and extent > size:
-                    level += 1
-                    size *= 2.0
+            if is_active:
+                level = level_of(lo, hi, inv_h0)
                 inv_h = level_inv_h(inv_h0, level)
-                span = cell_of(hi, inv_h) - cell_of(lo, inv_h) + 1
+                c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
+                for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
+                    b = bucket_of(level, ivec3(x, y, z), mask)
+                    ti.atomic_add(bucket_end[b + 1], 1)
+                    ti.atomic_min(bucket_bodies[b][0], body)
+                    ti.atomic_max(bucket_bodies[b][1], body)
+                span = c1 - c0 + 1
                 entries += span[0] * span[1] * span[2]
-                level_count[group, level] += 1
+                ti.atomic_add(group_count[group, level], 1)
+                slot = ti.atomic_add(group_count[group, LEVELS], 1)
+                active[slot] = t
+                tri_box[t, 0] = lo
+                tri_box[t, 1] = hi
             tri_level[t] = level
-    return entries
-
-
-@ti.kernel
-def _bin_group(
-    tri_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    tri_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    group: ti.i32,
-    inv_h0: float,
-    box_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    box_hi: ti.types.ndarray(dtype=vec3, ndim=1),
-    tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    bucket_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    bucket_fill: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    bucket_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
-    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    entry_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    entry_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
-    entry_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    entry_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    entry_hi: ti.types.ndarray(dtype=vec3, ndim=1),
-    serial: ti.template(),
-):
-    """Hash table of one group: count per bucket (and the range of bodies in it), prefix
-    sum (blocked; serial over blocks), scatter. Each entry carries its triangle's body
-    and box, so that scanning a bucket reads contiguous memory."""
-    n_buckets = bucket_fill.shape[0]
-    mask = n_buckets - 1
+    group_count[group, LEVELS + 1] = entries
+    fits = entries <= capacity
+    # Bucket b's count is at b + 1. An exclusive scan puts its start there (within
+    # blocks in parallel, then over block totals serially); the scatter then advances
+    # it to the bucket's end, so that bucket b's entries are [end[b], end[b + 1]).
+    n_blocks = block_sum.shape[0] if fits else 0
     ti.loop_config(serialize=serial)
-    for b in range(n_buckets):
-        bucket_fill[b] = 0
-        bucket_bodies[b] = ivec2(2147483647, -1)
-    ti.loop_config(serialize=serial)
-    for t in range(tri_group.shape[0]):
-        if tri_group[t] == group and tri_level[t] >= 0:
-            level = tri_level[t]
-            body = tri_body[t]
-            inv_h = level_inv_h(inv_h0, level)
-            c0, c1 = cell_of(box_lo[t], inv_h), cell_of(box_hi[t], inv_h)
-            for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-                b = bucket_of(level, ivec3(x, y, z), mask)
-                ti.atomic_add(bucket_fill[b], 1)
-                ti.atomic_min(bucket_bodies[b][0], body)
-                ti.atomic_max(bucket_bodies[b][1], body)
-    # Exclusive scan within blocks in parallel, then over block totals serially.
-    ti.loop_config(serialize=serial)
-    for k in range(block_sum.shape[0]):
+    for k in range(n_blocks):
         running = 0
         for b in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_buckets)):
-            bucket_start[b] = running
-            running += bucket_fill[b]
+            count = bucket_end[b + 1]
+            bucket_end[b + 1] = running
+            running += count
         block_sum[k] = running
+    total = 0
     ti.loop_config(serialize=True)
-    for k in range(block_sum.shape[0]):
-        if k == 0:
-            bucket_start[n_buckets] = 0
-        total = block_sum[k]
-        block_sum[k] = bucket_start[n_buckets]
-        bucket_start[n_buckets] += total
+    for k in range(n_blocks):
+        block_total = block_sum[k]
+        block_sum[k] = total
+        total += block_total
     ti.loop_config(serialize=serial)
-    for b in range(n_buckets):
-        bucket_start[b] += block_sum[b // SCAN_BLOCK]
-        bucket_fill[b] = bucket_start[b]
+    for b in range(n_buckets if fits else 0):
+        bucket_end[b + 1] += block_sum[b // SCAN_BLOCK]
+    n_scatter = group_count[group, LEVELS] if fits else 0
     ti.loop_config(serialize=serial)
-    for t in range(tri_group.shape[0]):
-        if tri_group[t] == group and tri_level[t] >= 0:
-            level = tri_level[t]
-            inv_h = level_inv_h(inv_h0, level)
-            lo, hi = box_lo[t], box_hi[t]
-            body = tri_body[t]
-            c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
-            for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-                c = ivec3(x, y, z)
-                slot = ti.atomic_add(bucket_fill[bucket_of(level, c, mask)], 1)
-                entry_tri[slot] = t
-                entry_cell[slot] = c
-                entry_body[slot] = body
-                entry_lo[slot] = lo
-                entry_hi[slot] = hi
+    for s in range(n_scatter):
+        t = active[s]
+        level = tri_level[t]
+        inv_h = level_inv_h(inv_h0, level)
+        lo, hi = tri_box[t, 0], tri_box[t, 1]
+        body = tri[t][3]
+        c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
+        for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
+            slot = ti.atomic_add(bucket_end[bucket_of(level, ivec3(x, y, z), mask) + 1], 1)
+            entry_key[slot] = ivec5(t, body, x, y, z)
+            entry_box[slot, 0] = lo
+            entry_box[slot, 1] = hi
+    return entries
 
 
 @ti.func
 def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32, lo_u: vec3,
-                c: ivec3, inv_h: float, pairs: ti.template(), pair_count: ti.template()):
+                c: ivec3, inv_h: float, pairs: ti.template(), group_count: ti.template()):
     """Append (t, u), body order first, if c — a cell both overlapping boxes cover — holds
     the lower corner of the boxes' intersection (so each pair is appended in one cell)."""
     if all(ti.max(cell_of(lo_t, inv_h), cell_of(lo_u, inv_h)) == c):
-        k = ti.atomic_add(pair_count[0], 1)
+        k = ti.atomic_add(group_count[0, LEVELS + 2], 1)
         if k < pairs.shape[0]:
             pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
 
 
 @ti.func
 def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i32, c: ivec3, inv_h: float,
-                 first: ti.i32, end: ti.i32, tri_level: ti.template(), entry_tri: ti.template(),
-                 entry_cell: ti.template(), entry_body: ti.template(), entry_lo: ti.template(),
-                 entry_hi: ti.template(), pairs: ti.template(), pair_count: ti.template()):
+                 first: ti.i32, end: ti.i32, tri_level: ti.template(), entry_key: ti.template(),
+                 entry_box: ti.template(), pairs: ti.template(), group_count: ti.template()):
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
     `level`, belong to another body and have an overlapping box."""
     for f in range(first, end):
-        if (entry_body[f] != body_t and all(entry_cell[f] == c)
-                and boxes_overlap(lo_t, hi_t, entry_lo[f], entry_hi[f])):
-            u = entry_tri[f]
+        key = entry_key[f]
+        if (key[1] != body_t and key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
+                and boxes_overlap(lo_t, hi_t, entry_box[f, 0], entry_box[f, 1])):
+            u = key[0]
             if tri_level[u] == level:
-                report_pair(t, body_t, lo_t, u, entry_body[f], entry_lo[f], c, inv_h, pairs, pair_count)
+                report_pair(t, body_t, lo_t, u, key[1], entry_box[f, 0], c, inv_h, pairs, group_count)
 
 
 @ti.func
-def query_coarser(t: ti.i32, top_level: ti.i32, table: ti.template(), inv_h0: float,
-                  box_lo: ti.template(), box_hi: ti.template(), tri_level: ti.template(),
-                  tri_body: ti.template(), level_count: ti.template(), bucket_start: ti.template(),
-                  entry_tri: ti.template(), entry_cell: ti.template(), entry_body: ti.template(),
-                  entry_lo: ti.template(), entry_hi: ti.template(), pairs: ti.template(),
-                  pair_count: ti.template()):
-    """Report t's partners binned in one table at levels above t's own, looked up in the
-    (at most 2 per axis) cells t's box covers at each such level."""
-    mask = bucket_start.shape[0] - 2
-    lo_t, hi_t = box_lo[t], box_hi[t]
-    body_t = tri_body[t]
+def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti.i32, inv_h0: float,
+                  tri_level: ti.template(), tri_box: ti.template(), group_count: ti.template(),
+                  bucket_end: ti.template(), entry_key: ti.template(), entry_box: ti.template(),
+                  pairs: ti.template()):
+    """Report t's partners binned in one table (MOVING or STATIC) at levels above t's own,
+    looked up in the (at most 2 per axis) cells t's box covers at each such level."""
+    mask = bucket_end.shape[0] - 2
+    lo_t, hi_t = tri_box[t, 0], tri_box[t, 1]
     for level in range(tri_level[t] + 1, top_level + 1):
-        if level_count[table, level] > 0:
+        if group_count[table, level] > 0:
             inv_h = level_inv_h(inv_h0, level)
             c0, c1 = cell_of(lo_t, inv_h), cell_of(hi_t, inv_h)
             for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
                 c = ivec3(x, y, z)
                 b = bucket_of(level, c, mask)
-                scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_start[b], bucket_start[b + 1],
-                             tri_level, entry_tri, entry_cell, entry_body, entry_lo, entry_hi, pairs, pair_count)
+                scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
+                             tri_level, entry_key, entry_box, pairs, group_count)
 
 
 @ti.kernel
 def _find_pairs(
-    tri_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    tri_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    inv_h0: float,
-    box_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    box_hi: ti.types.ndarray(dtype=vec3, ndim=1),
+    tri: ti.types.ndarray(dtype=ivec5, ndim=1),
     tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    level_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
-    moving_entries: ti.i32,
-    moving_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
+    moving_end: ti.types.ndarray(dtype=ti.i32, ndim=1),
     moving_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
-    moving_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    moving_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
-    moving_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    moving_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    moving_hi: ti.types.ndarray(dtype=vec3, ndim=1),
-    static_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    static_tri: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    static_cell: ti.types.ndarray(dtype=ivec3, ndim=1),
-    static_body: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    static_lo: ti.types.ndarray(dtype=vec3, ndim=1),
-    static_hi: ti.types.ndarray(dtype=vec3, ndim=1),
+    moving_key: ti.types.ndarray(dtype=ivec5, ndim=1),
+    moving_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    moving_active: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    static_end: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    static_key: ti.types.ndarray(dtype=ivec5, ndim=1),
+    static_box: ti.types.ndarray(dtype=vec3, ndim=2),
+    static_active: ti.types.ndarray(dtype=ti.i32, ndim=1),
     pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
-    pair_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    inv_h0: float,
     serial: ti.template(),
 ) -> ti.i32:
     """Candidate pairs (box overlap, different bodies, not both static); returns their number,
     which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored)."""
-    pair_count[0] = 0
+    group_count[0, LEVELS + 2] = 0
     top_moving = -1
     top_static = -1
     bottom = LEVELS
     ti.loop_config(serialize=True)
     for level in range(LEVELS):
-        if level_count[MOVING, level] > 0:
+        if group_count[MOVING, level] > 0:
             top_moving = level
             bottom = ti.min(bottom, level)
-        if level_count[STATIC, level] > 0:
+        if group_count[STATIC, level] > 0:
             top_static = level
             bottom = ti.min(bottom, level)
+    n_moving = group_count[MOVING, LEVELS]
     # With every triangle at one level there are no unequal-level pairs to look up.
-    n_coarser_queries = tri_group.shape[0] if ti.max(top_moving, top_static) > bottom else 0
+    n_coarser_queries = n_moving + group_count[STATIC, LEVELS] if ti.max(top_moving, top_static) > bottom else 0
     # Equal levels: each moving entry against the later entries of its bucket and
     # the static entries of its cell, so each pair meets once, in one shared cell.
-    moving_mask = moving_start.shape[0] - 2
-    static_mask = static_start.shape[0] - 2
+    moving_mask = moving_bodies.shape[0] - 1
+    static_mask = static_end.shape[0] - 2
     ti.loop_config(serialize=serial)
-    for e in range(moving_entries):
-        t = moving_tri[e]
-        c = moving_cell[e]
-        body_t = moving_body[e]
-        lo_t, hi_t = moving_lo[e], moving_hi[e]
+    for e in range(group_count[MOVING, LEVELS + 1]):
+        key = moving_key[e]
+        t = key[0]
+        body_t = key[1]
+        c = ivec3(key[2], key[3], key[4])
+        lo_t, hi_t = moving_box[e, 0], moving_box[e, 1]
         level = tri_level[t]
         inv_h = level_inv_h(inv_h0, level)
         b = bucket_of(level, c, moving_mask)
         # A bucket holding one body's triangles only has no pair to offer.
-        end = moving_start[b + 1] if moving_bodies[b][0] != moving_bodies[b][1] else 0
+        bodies = moving_bodies[b]
+        end = moving_end[b + 1] if bodies[0] != bodies[1] else 0
         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end, tri_level,
-                     moving_tri, moving_cell, moving_body, moving_lo, moving_hi, pairs, pair_count)
+                     moving_key, moving_box, pairs, group_count)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
-            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_start[b], static_start[b + 1], tri_level,
-                         static_tri, static_cell, static_body, static_lo, static_hi, pairs, pair_count)
+            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1], tri_level,
+                         static_key, static_box, pairs, group_count)
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
-    for t in range(n_coarser_queries):
-        if tri_level[t] < 0:
-            pass
-        elif tri_group[t] == MOVING:
-            query_coarser(t, top_moving, MOVING, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          moving_start, moving_tri, moving_cell, moving_body, moving_lo, moving_hi,
-                          pairs, pair_count)
-            query_coarser(t, top_static, STATIC, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          static_start, static_tri, static_cell, static_body, static_lo, static_hi,
-                          pairs, pair_count)
+    for s in range(n_coarser_queries):
+        if s < n_moving:
+            t = moving_active[s]
+            body_t = tri[t][3]
+            query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
+                          moving_end, moving_key, moving_box, pairs)
+            query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
+                          static_end, static_key, static_box, pairs)
         else:
-            query_coarser(t, top_moving, MOVING, inv_h0, box_lo, box_hi, tri_level, tri_body, level_count,
-                          moving_start, moving_tri, moving_cell, moving_body, moving_lo, moving_hi,
-                          pairs, pair_count)
-    return pair_count[0]
+            t = static_active[s - n_moving]
+            query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
+                          moving_end, moving_key, moving_box, pairs)
+    return group_count[0, LEVELS + 2]
 
 
 def _next_pow2(n: int) -> int:
@@ -394,34 +378,27 @@ def default_cell_size(box_extent: np.ndarray) -> float:
 class _HashTable:
     """The hash-grid buffers of one group, grown (never shrunk) to fit its entries."""
 
-    def __init__(self):
-        self.bucket_start = self.bucket_fill = self.bucket_bodies = self.block_sum = None
-        self.entry_tri = self.entry_cell = self.entry_body = self.entry_lo = self.entry_hi = None
-        self.entry_capacity = -1
+    def __init__(self, n_tris: int):
         self.entries = 0
+        self.active = ti.ndarray(ti.i32, shape=max(n_tris, 1))
+        self._allocate(0)
 
-    def reserve(self, entries: int) -> None:
-        self.entries = entries
-        if entries <= self.entry_capacity:
-            return
-        capacity = max(2 * self.entry_capacity, entries, 1)
-        n_buckets = _next_pow2(capacity)
-        self.bucket_start = ti.ndarray(ti.i32, shape=n_buckets + 1)
-        self.bucket_start.fill(0)
-        self.bucket_fill = ti.ndarray(ti.i32, shape=n_buckets)
+    def _allocate(self, capacity: int) -> None:
+        n_buckets = _next_pow2(max(capacity, 1))
+        self.bucket_end = ti.ndarray(ti.i32, shape=n_buckets + 1)
+        self.bucket_end.fill(0)
         self.bucket_bodies = ti.ndarray(ivec2, shape=n_buckets)
-        self.bucket_bodies.fill(0)
         self.block_sum = ti.ndarray(ti.i32, shape=(n_buckets + SCAN_BLOCK - 1) // SCAN_BLOCK)
-        self.entry_tri = ti.ndarray(ti.i32, shape=capacity)
-        self.entry_cell = ti.ndarray(ivec3, shape=capacity)
-        self.entry_body = ti.ndarray(ti.i32, shape=capacity)
-        real3 = ti.types.vector(3, runtime.real_type())
-        self.entry_lo = ti.ndarray(real3, shape=capacity)
-        self.entry_hi = ti.ndarray(real3, shape=capacity)
-        self.entry_capacity = capacity
+        self.entry_key = ti.ndarray(ivec5, shape=max(capacity, 1))
+        self.entry_box = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=(max(capacity, 1), 2))
+        self.capacity = capacity
 
-    def entry_arrays(self) -> tuple:
-        return self.entry_tri, self.entry_cell, self.entry_body, self.entry_lo, self.entry_hi
+    def grow(self, entries: int) -> None:
+        """Room for at least `entries`, with a quarter more for entries that come and go."""
+        self._allocate(max(entries + entries // 4, 2 * self.capacity))
+
+    def arrays(self) -> tuple:
+        return self.bucket_end, self.bucket_bodies, self.block_sum, self.entry_key, self.entry_box, self.active
 
 
 class UniformGrid:
@@ -456,68 +433,67 @@ class UniformGrid:
         self.has_static = bool(np.any(tri_static))
         self.has_moving = bool(not np.all(tri_static))
         size = max(m, 1)
-        self.tri_indices = ti.ndarray(ivec3, shape=size)
-        self.tri_body = ti.ndarray(ti.i32, shape=size)
-        self.tri_group = ti.ndarray(ti.i32, shape=size)
-        if m:
-            self.tri_indices.from_numpy(tri_indices)
-            self.tri_body.from_numpy(tri_body)
-            self.tri_group.from_numpy(np.where(tri_static, STATIC, MOVING).astype(np.int32))
-        real = runtime.real_type()
-        self.box_lo = ti.ndarray(ti.types.vector(3, real), shape=size)
-        self.box_hi = ti.ndarray(ti.types.vector(3, real), shape=size)
-        self.tri_level = ti.ndarray(ti.i32, shape=size)
         n_bodies = int(tri_body.max()) + 1 if m else 1
-        body_static = np.zeros(n_bodies, dtype=np.int32)
-        body_static[tri_body[tri_static]] = STATIC
-        if m and np.any(body_static[tri_body[~tri_static]] == STATIC):
+        body_group = np.full(n_bodies, MOVING, dtype=np.int32)
+        body_group[tri_body[tri_static]] = STATIC
+        if m and np.any(body_group[tri_body[~tri_static]] == STATIC):
             raise ValueError("a body has both static and moving triangles")
         n_particles = int(tri_indices.max()) + 1 if m else 1
         particle_body = np.full(n_particles, -1, dtype=np.int32)
         particle_body[tri_indices] = tri_body[:, None]
         if m and np.any(particle_body[tri_indices] != tri_body[:, None]):
             raise ValueError("a vertex is shared by triangles of different bodies; give each body its own vertices")
+        self.tri_indices_np = tri_indices
+        # Vertex indices, body and group of each triangle: one array, one kernel argument.
+        self.tri = ti.ndarray(ivec5, shape=size)
+        if m:
+            group = np.where(tri_static, STATIC, MOVING).astype(np.int32)
+            self.tri.from_numpy(np.column_stack([tri_indices, tri_body, group]).astype(np.int32))
+        real3 = ti.types.vector(3, runtime.real_type())
+        self.tri_box = ti.ndarray(real3, shape=(size, 2))
+        self.tri_level = ti.ndarray(ti.i32, shape=size)
+        self.tri_level.fill(-1)
         self.particle_body = ti.ndarray(ti.i32, shape=n_particles)
         self.particle_body.from_numpy(particle_body)
-        self.body_static = ti.ndarray(ti.i32, shape=n_bodies)
-        self.body_static.from_numpy(body_static)
-        self.body_lo = ti.ndarray(ti.types.vector(3, real), shape=n_bodies)
-        self.body_hi = ti.ndarray(ti.types.vector(3, real), shape=n_bodies)
-        self.level_count = ti.ndarray(ti.i32, shape=(2, LEVELS))
-        self.level_count.fill(0)
-        self.tables = (_HashTable(), _HashTable())
-        for table in self.tables:
-            table.reserve(0)
+        self.body_group = ti.ndarray(ti.i32, shape=n_bodies)
+        self.body_group.from_numpy(body_group)
+        self.body_box = ti.ndarray(real3, shape=(n_bodies, 2))
+        # Per group: triangles binned per level [0, LEVELS), binned triangles [LEVELS],
+        # entries [LEVELS + 1]; [0, LEVELS + 2] counts the pairs of a query.
+        self.group_count = ti.ndarray(ti.i32, shape=(2, LEVELS + 3))
+        self.group_count.fill(0)
+        self.tables = (_HashTable(m), _HashTable(m))
         self.pairs = ti.ndarray(ivec2, shape=pair_capacity)
-        self.pair_count = ti.ndarray(ti.i32, shape=1)
         self.n_pairs = 0
         self._static_binned = False
+        self._launch = Launcher()
 
     @property
     def pair_capacity(self) -> int:
         return self.pairs.shape[0]
 
+    def entries(self, group: int) -> int:
+        """(cell, triangle) entries of the last binning of `group` (MOVING or STATIC)."""
+        return self.tables[group].entries
+
     def _choose_cell_size(self, particle_x) -> None:
         if self.cell_size is not None:
             return
         x = particle_x.to_numpy()
-        tris = x[self.tri_indices.to_numpy()[: self.n_tris]]
+        tris = x[self.tri_indices_np]
         extent = (tris.max(axis=1) - tris.min(axis=1)).max(axis=1) + 2 * self.margin
         self.cell_size = default_cell_size(extent)
 
     def _bin(self, particle_x, group: int) -> None:
-        inv_h0 = 1.0 / self.cell_size
-        serial = runtime.serial_loops(self.n_tris)
-        entries = _triangle_boxes(particle_x, self.particle_body, self.tri_indices, self.tri_group, self.tri_body,
-                                  self.body_static,
-                                  group, self.margin, inv_h0, self.box_lo, self.box_hi, self.body_lo,
-                                  self.body_hi, self.tri_level, self.level_count, serial)
         table = self.tables[group]
-        table.reserve(entries)
-        _bin_group(self.tri_group, self.tri_body, group, inv_h0, self.box_lo, self.box_hi, self.tri_level,
-                   table.bucket_start, table.bucket_fill, table.bucket_bodies, table.block_sum,
-                   *table.entry_arrays(),
-                   runtime.serial_loops(entries))
+        while True:
+            entries = self._launch(_bin_group, particle_x, self.particle_body, self.tri, self.tri_level, self.tri_box,
+                                   self.body_group, self.body_box, self.group_count, *table.arrays(),
+                                   group, self.margin, 1.0 / self.cell_size, runtime.serial_loops(self.n_tris))
+            if entries <= table.capacity:
+                break
+            table.grow(entries)
+        table.entries = entries
 
     def bin_static(self, particle_x) -> None:
         """Bin the static triangles at their current positions (once; again only if they moved)."""
@@ -528,8 +504,8 @@ class UniformGrid:
 
     def find_pairs(self, particle_x) -> int:
         """Rebin the moving triangles at particle_x (ti.ndarray of vec3, (n_particles,)) and
-        collect all candidate pairs into `pairs[:n]`; returns n. Grows the pair buffer and
-        runs again when it overflows, so no pair is ever dropped."""
+        collect all candidate pairs into `pairs[:n]`; returns n. Grows the buffers and
+        runs again when they overflow, so no pair is ever dropped."""
         if not self._static_binned:
             self.bin_static(particle_x)
         if self.n_tris == 0:
@@ -538,12 +514,12 @@ class UniformGrid:
         if self.has_moving:
             self._bin(particle_x, MOVING)
         moving, static = self.tables
+        serial = runtime.serial_loops(moving.entries)
         while True:
-            n = _find_pairs(self.tri_group, self.tri_body, 1.0 / self.cell_size, self.box_lo, self.box_hi,
-                            self.tri_level, self.level_count, moving.entries,
-                            moving.bucket_start, moving.bucket_bodies, *moving.entry_arrays(),
-                            static.bucket_start, *static.entry_arrays(),
-                            self.pairs, self.pair_count, runtime.serial_loops(moving.entries))
+            n = self._launch(_find_pairs, self.tri, self.tri_level, self.tri_box, self.group_count,
+                             moving.bucket_end, moving.bucket_bodies, moving.entry_key, moving.entry_box,
+                             moving.active, static.bucket_end, static.entry_key, static.entry_box, static.active,
+                             self.pairs, 1.0 / self.cell_size, serial)
             if n <= self.pair_capacity:
                 break
             self.pairs = ti.ndarray(ivec2, shape=max(n, 2 * self.pair_capacity))

@@ -11,16 +11,17 @@ import numpy as np
 import taichi as ti
 
 from . import runtime
-from .broadphase import UniformGrid, ivec2, ivec3
+from .broadphase import UniformGrid, ivec2, ivec5
 from .contacts import Contacts
 from .geometry import vec3
+from .launch import Launcher
 from .narrowphase import collide_triangle_pair
 
 
 @ti.kernel
 def _collide_candidates(
     particle_x: ti.types.ndarray(dtype=vec3, ndim=1),
-    tri_indices: ti.types.ndarray(dtype=ivec3, ndim=1),
+    tri: ti.types.ndarray(dtype=ivec5, ndim=1),
     pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
     n_pairs: ti.i32,
     contact_pair: ti.types.ndarray(dtype=ivec2, ndim=1),
@@ -37,7 +38,7 @@ def _collide_candidates(
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
         ab = pairs[k]
-        ia, ib = tri_indices[ab[0]], tri_indices[ab[1]]
+        ia, ib = tri[ab[0]], tri[ab[1]]  # vertex indices first
         hit, depth, normal, side, point = collide_triangle_pair(
             particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]],
             particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]])
@@ -65,6 +66,7 @@ class CollisionPipeline:
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
                                 pair_capacity=pair_capacity)
         self.contacts = Contacts(contact_capacity)
+        self._launch = Launcher()
 
     def run(self, particle_x, phase_seconds: dict | None = None) -> int:
         """All intersecting triangle pairs at particle_x (ti.ndarray of vec3, (n_particles,))
@@ -78,7 +80,7 @@ class CollisionPipeline:
             phase_seconds["broad"] = phase_seconds.get("broad", 0.0) + middle - start
         c = self.contacts
         while True:
-            n = _collide_candidates(particle_x, self.grid.tri_indices, self.grid.pairs, n_pairs,
+            n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
                                     c.pair, c.depth, c.normal, c.side, c.point, c.counter,
                                     runtime.serial_loops(n_pairs))
             if n <= c.capacity:

@@ -73,7 +73,7 @@ def test_ground_triangle_100_times_larger(f64):
     grid, expected = check(x, faces, body)
     assert sum(1 for a, b in expected if b == len(faces) - 1) > 10
     # The ground is binned at a coarse level, not into ~10^8 fine cells.
-    assert grid.tables[0].entries < 8 * len(faces)
+    assert grid.entries(0) < 8 * len(faces)
 
 
 def test_slivers_and_zero_area_triangles(f64):
@@ -104,7 +104,7 @@ def test_everything_in_one_cell(f64):
     x, faces, body = soup(rng, 15, tris_per_body=10, spread=0.2, size=0.1)
     grid, expected = check(x + 50.0, faces, body, cell_size=100.0)
     binned = int((grid.tri_level.to_numpy() >= 0).sum())
-    assert grid.tables[0].entries == binned > len(faces) // 2  # one cell each, the same cell
+    assert grid.entries(0) == binned > len(faces) // 2  # one cell each, the same cell
     assert len(expected) > 50
 
 
@@ -113,14 +113,14 @@ def test_static_bodies_binned_once_while_others_move(f64):
     x, faces, body = soup(rng, 12, tris_per_body=10, spread=0.6, size=0.3)
     static = np.isin(body, [0, 3, 4])
     grid, _ = check(x, faces, body, static)
-    static_entries = grid.tables[1].entries
+    static_entries = grid.entries(1)
     moving_vertices = np.unique(faces[~static])
     for step in range(3):
         x = x.copy()
         x[moving_vertices] += rng.uniform(-0.2, 0.2, (len(moving_vertices), 3))
         expected = brute_pairs(x, faces, body, static)
         assert grid_pairs(grid, x) == expected
-    assert grid.tables[1].entries == static_entries
+    assert grid.entries(1) == static_entries
 
 
 def test_pair_buffer_overflow_grows_and_gives_the_same_pairs(f64):
