@@ -67,9 +67,13 @@ def level_inv_h(inv_h0: float, level: ti.i32) -> float:
 def bucket_of(level: ti.i32, c: ivec3, mask: ti.i32) -> ti.i32:
     """Hash bucket of cell c at a level, in [0, mask] (mask = table size - 1, a power of two).
 
-    Only the low 21 bits of each coordinate are mixed, so that no product can overflow
-    (Taichi's debug mode traps integer overflow); cells that collide are told apart by
-    the cell stored with each entry.
+    Cells are grouped in blocks of 4 x 4 x 4: a block's cells take 64 consecutive
+    buckets (in Morton order), and blocks are hashed. Neighbouring triangles then fill
+    neighbouring buckets, whose entries lie next to each other after the prefix sum,
+    which keeps the scatter and the pair search in cache. Only the low 21 bits of each
+    block coordinate are mixed, so that no product can overflow (Taichi's debug mode
+    traps integer overflow); cells that collide are told apart by the cell stored with
+    each entry.
     """
     low = ti.cast(c, ti.i64) & 0x1FFFFF
     key = (low[0] * 73856093 + low[1] * 19349663 + low[2] * 83492791
@@ -181,11 +185,14 @@ def _bin_group(
                 level = level_of(lo, hi, inv_h0)
                 inv_h = level_inv_h(inv_h0, level)
                 c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
-                for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-                    b = bucket_of(level, ivec3(x, y, z), mask)
-                    ti.atomic_add(bucket_end[b + 1], 1)
-                    ti.atomic_min(bucket_bodies[b][0], body)
-                    ti.atomic_max(bucket_bodies[b][1], body)
+                # Nested loops: an inner ti.ndrange divides its flat index on every iteration.
+                for x in range(c0[0], c1[0] + 1):
+                    for y in range(c0[1], c1[1] + 1):
+                        for z in range(c0[2], c1[2] + 1):
+                            b = bucket_of(level, ivec3(x, y, z), mask)
+                            ti.atomic_add(bucket_end[b + 1], 1)
+                            ti.atomic_min(bucket_bodies[b][0], body)
+                            ti.atomic_max(bucket_bodies[b][1], body)
                 span = c1 - c0 + 1
                 entries += span[0] * span[1] * span[2]
                 ti.atomic_add(group_count[group, level], 1)
@@ -226,11 +233,14 @@ def _bin_group(
         lo, hi = tri_box[t, 0], tri_box[t, 1]
         body = tri[t][3]
         c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
-        for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-            slot = ti.atomic_add(bucket_end[bucket_of(level, ivec3(x, y, z), mask) + 1], 1)
-            entry_key[slot] = ivec5(t, body, x, y, z)
-            entry_box[slot, 0] = lo
-            entry_box[slot, 1] = hi
+        # Nested loops: an inner ti.ndrange divides its flat index on every iteration.
+        for x in range(c0[0], c1[0] + 1):
+            for y in range(c0[1], c1[1] + 1):
+                for z in range(c0[2], c1[2] + 1):
+                    slot = ti.atomic_add(bucket_end[bucket_of(level, ivec3(x, y, z), mask) + 1], 1)
+                    entry_key[slot] = ivec5(t, body, x, y, z)
+                    entry_box[slot, 0] = lo
+                    entry_box[slot, 1] = hi
     return entries
 
 
@@ -273,11 +283,14 @@ def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti
         if group_count[table, level] > 0:
             inv_h = level_inv_h(inv_h0, level)
             c0, c1 = cell_of(lo_t, inv_h), cell_of(hi_t, inv_h)
-            for x, y, z in ti.ndrange((c0[0], c1[0] + 1), (c0[1], c1[1] + 1), (c0[2], c1[2] + 1)):
-                c = ivec3(x, y, z)
-                b = bucket_of(level, c, mask)
-                scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
-                             tri_level, entry_key, entry_box, pairs, group_count)
+            # Nested loops: an inner ti.ndrange divides its flat index on every iteration.
+            for x in range(c0[0], c1[0] + 1):
+                for y in range(c0[1], c1[1] + 1):
+                    for z in range(c0[2], c1[2] + 1):
+                        c = ivec3(x, y, z)
+                        b = bucket_of(level, c, mask)
+                        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
+                                     tri_level, entry_key, entry_box, pairs, group_count)
 
 
 @ti.kernel
