@@ -23,17 +23,26 @@ from taichi_dcd.scene import Scene
 
 
 def count_launches():
-    """Wrap taichi's Kernel.__call__ so that every launch increments counter[0]."""
+    """Wrap taichi's Kernel.__call__, and our bound launches that bypass it, so that every
+    launch increments counter[0]."""
     from taichi.lang import kernel_impl
+
+    from taichi_dcd.launch import BoundKernel
 
     counter = [0]
     original = kernel_impl.Kernel.__call__
+    original_bound = BoundKernel.__call__
 
     def counted(self, *args, **kwargs):
         counter[0] += 1
         return original(self, *args, **kwargs)
 
+    def counted_bound(self, *scalars):
+        counter[0] += self._fast  # the fallback goes through Kernel.__call__
+        return original_bound(self, *scalars)
+
     kernel_impl.Kernel.__call__ = counted
+    BoundKernel.__call__ = counted_bound
     return counter
 
 

@@ -15,7 +15,7 @@ from .broadphase import UniformGrid, ivec2, ivec5
 from .contacts import Contacts
 from .geometry import vec3
 from .launch import Launcher
-from .narrowphase import collide_triangle_pair
+from .narrowphase import collide_triangle_pair, touching_planes
 
 
 @ti.kernel
@@ -31,18 +31,25 @@ def _collide_candidates(
     contact_point: ti.types.ndarray(dtype=vec3, ndim=1),
     contact_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
     serial: ti.template(),
+    keep_touching: ti.template(),
 ) -> ti.i32:
     """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
-    intersecting ones and returns how many there are (more than the capacity on overflow)."""
+    intersecting ones (and with keep_touching those it calls touching, with side -1) and
+    returns how many there are (more than the capacity on overflow)."""
     contact_count[0] = 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
         ab = pairs[k]
         ia, ib = tri[ab[0]], tri[ab[1]]  # vertex indices first
-        hit, depth, normal, side, point = collide_triangle_pair(
-            particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]],
-            particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]])
-        if hit:
+        a0, a1, a2 = particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]]
+        b0, b1, b2 = particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]]
+        hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
+        keep = hit
+        if ti.static(keep_touching):
+            if not hit:
+                which, _, _, _ = touching_planes(a0, a1, a2, b0, b1, b2)
+                keep = which >= 0
+        if keep:
             slot = ti.atomic_add(contact_count[0], 1)
             if slot < contact_depth.shape[0]:
                 contact_pair[slot] = ab
@@ -57,14 +64,21 @@ class CollisionPipeline:
     """Broad phase + narrow phase over the triangles of several bodies.
 
     tri_indices (m, 3), tri_body (m,), tri_static (m,) bool: as for `UniformGrid`.
-    cell_size, margin: the grid's base cell size and box inflation (scene units).
+    cell_size, margin: the grid's base cell size and box inflation (scene units); skin:
+    as for `UniformGrid` (candidate pairs reused while the vertices stay within skin cells
+    of where they were binned; the contacts are exact either way). keep_touching: the
+    contacts also hold the pairs the narrow phase calls touching (one triangle crossing
+    the other's plane, the other only touching this one's; side -1, depth 0), from which
+    the solver makes its touching contacts.
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
-                 margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024):
+                 margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
+                 skin: float = 0.0, keep_touching: bool = False):
+        self.keep_touching = bool(keep_touching)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
-                                pair_capacity=pair_capacity)
+                                pair_capacity=pair_capacity, skin=skin)
         self.contacts = Contacts(contact_capacity)
         self._launch = Launcher()
 
@@ -82,7 +96,7 @@ class CollisionPipeline:
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
                                     c.pair, c.depth, c.normal, c.side, c.point, c.counter,
-                                    runtime.serial_loops(n_pairs))
+                                    runtime.serial_loops(n_pairs), self.keep_touching)
             if n <= c.capacity:
                 break
             c.grow(n)

@@ -12,6 +12,7 @@ import taichi as ti
 from . import runtime
 
 ivec2 = ti.types.vector(2, ti.i32)
+ivec3 = ti.types.vector(3, ti.i32)
 
 
 @dataclass
@@ -86,6 +87,7 @@ class ContactConstraints(_GrowableBuffer):
 
     Row k ties a point of the moved triangle `tri[k][0]` (barycentric weights
     `bary_moved[k]`) to a point of the other triangle `tri[k][1]` (`bary_other[k]`);
+    `tri[k][2]` is the row before it with a moved triangle of the same body (-1: none);
     the moved point is pushed along the unit `normal[k]` until it reaches the other
     point's plane. `budget[k]` is how much more of C (m) it may correct this substep (see
     solver.DEPENETRATION_SPEED); on a row with a soft body it is instead the depth (m) the
@@ -99,7 +101,7 @@ class ContactConstraints(_GrowableBuffer):
     def _allocate(self, capacity: int) -> None:
         real = runtime.real_type()
         vec3 = ti.types.vector(3, real)
-        self.tri = ti.ndarray(ivec2, shape=capacity)
+        self.tri = ti.ndarray(ivec3, shape=capacity)
         self.bary_moved = ti.ndarray(vec3, shape=capacity)
         self.bary_other = ti.ndarray(vec3, shape=capacity)
         self.normal = ti.ndarray(vec3, shape=capacity)

@@ -275,6 +275,43 @@ def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: 
 
 
 @ti.func
+def touches(s: vec3) -> bool:
+    """Whether snapped signed distances s put a triangle against a plane without crossing
+    it: some exactly 0, none of one of the two signs."""
+    return (s.min() == 0.0 or s.max() == 0.0) and not straddles(s)
+
+
+@ti.func
+def touching_planes(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3):
+    """The planes of a pair the unified test calls touching, not intersecting (supplement
+    Fig. 8), when one triangle crosses the other's plane while the other only touches its
+    plane. Returns (which, n_a, n_b, floor): which = 0 if A crosses B's plane and B touches
+    A's, 1 for the reverse, -1 otherwise (or a triangle without area); n_a, n_b the unit
+    normals; floor = tol·L, the distance treated as zero."""
+    tol = ti.static(runtime.tolerance())
+    size = ti.sqrt(ti.max(longest_edge_sq(a0, a1, a2), longest_edge_sq(b0, b1, b2)))
+    floor = tol * size
+    which = -1
+    n_a = vec3(0.0)
+    n_b = vec3(0.0)
+    cross_a = (a1 - a0).cross(a2 - a0)
+    cross_b = (b1 - b0).cross(b2 - b0)
+    # Snapping only removes a straddle, so a pair whose raw distances straddle neither
+    # plane (most candidates) is not touching: leave before normalising anything.
+    may_cross = (straddles(vec3(cross_b.dot(a0 - b0), cross_b.dot(a1 - b0), cross_b.dot(a2 - b0)))
+                 or straddles(vec3(cross_a.dot(b0 - a0), cross_a.dot(b1 - a0), cross_a.dot(b2 - a0))))
+    if may_cross and cross_a.norm() > floor * size and cross_b.norm() > floor * size:
+        n_a, n_b = cross_a.normalized(), cross_b.normalized()
+        s_a = snap_to_zero(vec3(n_b.dot(a0 - b0), n_b.dot(a1 - b0), n_b.dot(a2 - b0)), floor * floor)
+        s_b = snap_to_zero(vec3(n_a.dot(b0 - a0), n_a.dot(b1 - a0), n_a.dot(b2 - a0)), floor * floor)
+        if straddles(s_a) and touches(s_b):
+            which = 0
+        elif straddles(s_b) and touches(s_a):
+            which = 1
+    return which, n_a, n_b, floor
+
+
+@ti.func
 def all_finite(x: vec3) -> bool:
     """Whether no coordinate of x is NaN or infinite, by its exponent bits (immune to fast-math)."""
     ok = True

@@ -35,9 +35,9 @@ from .broadphase import BOX_SLACK, boxes_overlap
 from .collision import CollisionPipeline
 from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
 from .contacts import ContactConstraints
-from .geometry import barycentric, longest_edge_sq, snap_to_zero, straddles
+from .geometry import barycentric, longest_edge_sq
 from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
-from .narrowphase import collide_triangle_pair
+from .narrowphase import collide_triangle_pair, touching_planes
 from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
                     gyroscopic_step, integrate_rotation, quat_rotate)
 
@@ -52,6 +52,12 @@ BRUTE_FORCE_MAX_PAIRS = 200_000
 # Contacts are checked for duplicates while the buffer holds at most this many rows
 # (the check is quadratic; large scenes' contacts rarely share points exactly).
 DEDUP_MAX_ROWS = 4096
+# The grid path bins moving boxes inflated by this fraction of a grid cell and reuses the
+# candidate pairs until a vertex has moved that far (the contacts are exact either way).
+# On the pile (benchmarks/large_scenes.py, first second) 0.1 took 50 s per simulated
+# second, 0.25 60 s, 0.5 74 s (more candidates for the narrow phase), 0 (rebin every
+# substep) 177 s.
+GRID_SKIN = 0.1
 # Depth a contact did not make during its own substep (older penetration, or a depth
 # measured along a poor normal at a degenerate feature) is undone at most this fast (m/s,
 # times √length_scale: motions of a scene scaled by L are √L as fast): pushing it out in
@@ -70,13 +76,6 @@ DEFAULT_BOUND = 1e6
 
 class SimulationError(RuntimeError):
     """The simulation produced NaN or left the bounds; message names frame and body."""
-
-
-@ti.func
-def touches(s: vec3) -> bool:
-    """Whether snapped signed distances s put a triangle against a plane without crossing
-    it: some exactly 0, none of one of the two signs."""
-    return (s.min() == 0.0 or s.max() == 0.0) and not straddles(s)
 
 
 @ti.func
@@ -133,6 +132,9 @@ class XPBDSolver:
             self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
             self.volume_lambda = scalar_field(m.n_bodies)
             self.body_level = scalar_field(m.n_bodies, ti.i32)
+            # The last contact row whose moved triangle belongs to each body (-1: none); each
+            # row links to the one before it (ContactConstraints.tri), for is_duplicate.
+            self.body_last_row = scalar_field(m.n_bodies, ti.i32)
             self.body_mass = scalar_field(m.n_bodies)
             self.body_thickness = scalar_field(m.n_bodies)
             real = runtime.real_dtype()
@@ -147,7 +149,8 @@ class XPBDSolver:
             tri_static = kind[m.tri_body_np] == STATIC
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
                                               pair_capacity=max(1024, 4 * m.n_tris),
-                                              contact_capacity=max(1024, m.n_tris))
+                                              contact_capacity=max(1024, m.n_tris), skin=GRID_SKIN,
+                                              keep_touching=True)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
         self.last_contact_count = 0
         # Set to a dict to have the grid path add up the wall seconds of its phases
@@ -301,7 +304,9 @@ class XPBDSolver:
         bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
         target = point + depth * normal
         bary_o = barycentric(target, self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]])
-        c_tri[k] = ivec2(t_moved, t_other)
+        body_m = self.model.tri_body[t_moved]
+        c_tri[k] = ivec3(t_moved, t_other, self.body_last_row[body_m])
+        self.body_last_row[body_m] = k
         c_bary_moved[k] = bary_m
         c_bary_other[k] = bary_o
         c_normal[k] = normal
@@ -351,7 +356,7 @@ class XPBDSolver:
                             for tb in range(self.model.body_tri_range[bb][0], self.model.body_tri_range[bb][1]):
                                 if boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.tri_lo[tb], self.tri_hi[tb]):
                                     if n < capacity:
-                                        c_tri[n] = ivec2(ta, tb)
+                                        c_tri[n] = ivec3(ta, tb, -1)
                                     n += 1
         return n
 
@@ -361,25 +366,39 @@ class XPBDSolver:
                            c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
         """The unified narrow phase on the candidate pairs in c_tri, compacted in place into
         contact rows (serial: row n <= candidate k is written after k is read); returns the count."""
+        self.forget_rows()
         n = 0
         for k in range(n_candidates):
-            ab = c_tri[k]
+            ab = ivec2(c_tri[k][0], c_tri[k][1])
             ia, ib = self.model.tri_indices[ab[0]], self.model.tri_indices[ab[1]]
             hit, depth, normal, side, point = collide_triangle_pair(
                 self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]],
                 self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]])
-            t_m, t_o = ab[0], ab[1]
-            if side == 1:
-                t_m, t_o = ab[1], ab[0]
-            if side < 0:
-                found, t_m, t_o, depth, normal, point = self.touching_pair_contact(ab[0], ab[1])
-                side = ti.select(found, 0, -1)
-            if side >= 0:
-                if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
-                    self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
-                                       c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                    n += 1
+            n = self.add_pair_contact(n, ab, side, depth, normal, point, max_push, c_tri, c_bary_moved,
+                                      c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
         return n
+
+    @ti.func
+    def add_pair_contact(self, n: ti.i32, ab: ivec2, side: ti.i32, depth: float, normal: vec3, point: vec3,
+                         max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                         c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                         c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """Row n from the narrow phase's result for the pair ab (side, depth, normal, point as
+        collide_triangle_pair returns them), or where that has no constraint from the
+        touching test; nothing if the row would repeat an earlier one. Returns the row count."""
+        t_m, t_o = ab[0], ab[1]
+        if side == 1:
+            t_m, t_o = ab[1], ab[0]
+        if side < 0:
+            found, t_m, t_o, depth, normal, point = self.touching_pair_contact(ab[0], ab[1])
+            side = ti.select(found, 0, -1)
+        rows = n
+        if side >= 0:
+            if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
+                self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
+                                   c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                rows += 1
+        return rows
 
     @ti.func
     def touching_pair_contact(self, t_a: ti.i32, t_b: ti.i32):
@@ -396,31 +415,23 @@ class XPBDSolver:
         a0, a1, a2 = self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]]
         b0, b1, b2 = self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]]
         tol = ti.static(runtime.tolerance())
-        size = ti.sqrt(ti.max(longest_edge_sq(a0, a1, a2), longest_edge_sq(b0, b1, b2)))
-        floor = tol * size
-        found = False
         t_m, t_o = t_a, t_b
         depth = 0.0
         normal = vec3(0.0)
         point = vec3(0.0)
-        cross_a = (a1 - a0).cross(a2 - a0)
-        cross_b = (b1 - b0).cross(b2 - b0)
-        if cross_a.norm() > floor * size and cross_b.norm() > floor * size:
-            n_a, n_b = cross_a.normalized(), cross_b.normalized()
-            s_a = snap_to_zero(vec3(n_b.dot(a0 - b0), n_b.dot(a1 - b0), n_b.dot(a2 - b0)), floor * floor)
-            s_b = snap_to_zero(vec3(n_a.dot(b0 - a0), n_a.dot(b1 - a0), n_a.dot(b2 - a0)), floor * floor)
-            # The crossing triangle moves: a static one would push the other body from its
-            # own side, a second copy of the same contact.
-            if straddles(s_a) and touches(s_b) and self.model.body_kind[self.model.tri_body[t_a]] != STATIC:
-                depth, point = deepest_vertex_behind(a0, a1, a2, b0, b1, b2, n_b, floor,
-                                                     0.5 * self.body_thickness[self.model.tri_body[t_b]], tol)
-                normal = n_b
-            elif straddles(s_b) and touches(s_a) and self.model.body_kind[self.model.tri_body[t_b]] != STATIC:
-                depth, point = deepest_vertex_behind(b0, b1, b2, a0, a1, a2, n_a, floor,
-                                                     0.5 * self.body_thickness[self.model.tri_body[t_a]], tol)
-                normal = n_a
-                t_m, t_o = t_b, t_a
-            found = depth > 0.0
+        which, n_a, n_b, floor = touching_planes(a0, a1, a2, b0, b1, b2)
+        # The crossing triangle moves: a static one would push the other body from its
+        # own side, a second copy of the same contact.
+        if which == 0 and self.model.body_kind[self.model.tri_body[t_a]] != STATIC:
+            depth, point = deepest_vertex_behind(a0, a1, a2, b0, b1, b2, n_b, floor,
+                                                 0.5 * self.body_thickness[self.model.tri_body[t_b]], tol)
+            normal = n_b
+        elif which == 1 and self.model.body_kind[self.model.tri_body[t_b]] != STATIC:
+            depth, point = deepest_vertex_behind(b0, b1, b2, a0, a1, a2, n_a, floor,
+                                                 0.5 * self.body_thickness[self.model.tri_body[t_a]], tol)
+            normal = n_a
+            t_m, t_o = t_b, t_a
+        found = depth > 0.0
         return found, t_m, t_o, depth, normal, point
 
     @ti.func
@@ -505,13 +516,21 @@ class XPBDSolver:
         tol = ti.static(ti.sqrt(runtime.machine_eps()))
         found = False
         if n <= DEDUP_MAX_ROWS:
-            for j in range(n):
+            # Only rows of the same moved body can match: walk its chain of rows.
+            j = self.body_last_row[body_m]
+            while j >= 0 and not found:
                 tri = c_tri[j]
-                if (not found and self.model.tri_body[tri[0]] == body_m and self.model.tri_body[tri[1]] == body_o
-                        and c_normal[j].dot(normal) >= 1.0 - tol):
+                if self.model.tri_body[tri[1]] == body_o and c_normal[j].dot(normal) >= 1.0 - tol:
                     p = self.anchor_world(tri[0], c_bary_moved[j], False)
                     found = (p - point).norm() <= tol * size
+                j = tri[2]
         return found
+
+    @ti.func
+    def forget_rows(self):
+        """Start a substep's contact rows: no body has a row yet."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.body_last_row[b] = -1
 
     @ti.func
     def compute_levels(self, n_contacts: ti.i32, c_tri: ti.template()):
@@ -819,7 +838,7 @@ class XPBDSolver:
 
     @ti.kernel
     def _frame_all_pairs(self, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3, first_kick: float,
-                         bound: float, depenetration: float, c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
+                         bound: float, depenetration: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
@@ -887,7 +906,7 @@ class XPBDSolver:
                      p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
                      p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
                      p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_tri: ti.types.ndarray(dtype=ivec2, ndim=1),
+                     c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                      c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
@@ -898,17 +917,12 @@ class XPBDSolver:
         Returns (contacts, state check)."""
         n = 0
         for _ in range(1):
+            # The same rows as the all-pairs path: the pipeline keeps touching pairs too.
+            self.forget_rows()
             for k in range(n_pairs):
-                side = ti.cast(p_side[k], ti.i32)
-                if side >= 0:
-                    ab = p_pair[k]
-                    t_m, t_o = ab[0], ab[1]
-                    if side == 1:
-                        t_m, t_o = ab[1], ab[0]
-                    self.write_contact(n, t_m, t_o, p_depth[k], p_normal[k], p_point[k], depenetration * h,
-                                       c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                       c_vn0)
-                    n += 1
+                n = self.add_pair_contact(n, p_pair[k], ti.cast(p_side[k], ti.i32), p_depth[k], p_normal[k],
+                                          p_point[k], depenetration * h, c_tri, c_bary_moved, c_bary_other,
+                                          c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
             # The buffer holds VERTEX_ROWS_PER_PAIR(_SOFT) rows per pair (_step_grid): every vertex contact fits.
             n = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)

@@ -10,10 +10,11 @@ from taichi_dcd.runtime import tolerance
 
 def brute_pairs(x, tri_indices, tri_body, tri_static, margin=0.0) -> set:
     """All (a, b) with body[a] < body[b], not both static, whose closed boxes overlap
-    (boxes padded by the margin and the narrow phase's tolerance, as the grid's are)."""
+    (boxes padded by the margin, a length or one per triangle, and the narrow phase's
+    tolerance, as the grid's are)."""
     tris = x[tri_indices]
     lo, hi = tris.min(axis=1), tris.max(axis=1)
-    pad = margin + BOX_SLACK * tolerance() * (hi - lo).max(axis=1, keepdims=True)
+    pad = np.reshape(margin, (-1, 1)) + BOX_SLACK * tolerance() * (hi - lo).max(axis=1, keepdims=True)
     lo, hi = lo - pad, hi + pad
     overlap = ((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :])).all(axis=2)
     keep = overlap & (tri_body[:, None] < tri_body[None, :]) & ~(tri_static[:, None] & tri_static[None, :])
@@ -140,3 +141,29 @@ def test_f32_grid_matches_brute_force(f32):
     grid.find_pairs(px)
     got = set(map(tuple, grid.pairs_numpy().tolist()))
     assert got == brute_pairs(x, faces, body, np.zeros(len(faces), bool))
+
+
+def test_skin_reuses_pairs_only_while_they_cover_the_exact_ones(f64):
+    """With a skin the grid rebins only after some moving vertex moved 0.9 skin along an
+    axis; every query's pairs still contain every overlapping pair, and right after a
+    rebin they are the pairs of the inflated boxes."""
+    rng = np.random.default_rng(17)
+    x, faces, body = soup(rng, 12, tris_per_body=10, spread=0.6, size=0.3)
+    static = np.isin(body, [0, 5])
+    grid = UniformGrid(faces, body, static, cell_size=0.2, skin=0.5)
+    skin = 0.5 * 0.2
+    moving = np.unique(faces[~static])
+    velocity = rng.uniform(-1, 1, (len(moving), 3))
+    inflated = np.where(static, 0.0, skin)  # static triangles are never rebinned
+    assert grid_pairs(grid, x) == brute_pairs(x, faces, body, static, margin=inflated)
+    built = x.copy()
+    for step in range(40):
+        x = x.copy()
+        x[moving] += 0.004 * velocity
+        got = grid_pairs(grid, x)
+        exact = brute_pairs(x, faces, body, static)
+        assert exact <= got, f"step {step}: missing {sorted(exact - got)[:5]}"
+        if np.abs(x[moving] - built[moving]).max() > 0.9 * skin:
+            built = x.copy()
+            assert got == brute_pairs(x, faces, body, static, margin=inflated)
+    assert 2 <= grid.rebuilds <= 8 < grid.queries  # reused most of the time
