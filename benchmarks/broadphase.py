@@ -9,9 +9,9 @@ For each, the steady-state time of our full contact query (`CollisionPipeline.ru
 boxes, grid, candidate pairs, unified narrow phase into the contact buffer; built
 once, vertices already in place) against python-fcl's `collide()` between two
 prebuilt BVH models with every contact requested, both on one thread; the median
-of the repeats is reported. Both contact counts are printed, and every pair only
-one side reports is classified in exact rational arithmetic (touching, coplanar,
-crossing, apart).
+of the repeats is reported, the two queries taking turns. Both contact counts are
+printed, and every pair only one side reports is classified in exact rational
+arithmetic (touching, coplanar, crossing, apart).
 
 Then the scaling curve: the shift placement from 1k to 1M triangles in total,
 time per query and per triangle, printed and plotted.
@@ -52,14 +52,18 @@ def torus_pair(major_sections: int, placement: str) -> tuple[trimesh.Trimesh, tr
     return a, b
 
 
-def median_time(fn, repeat: int) -> float:
-    fn()  # compile, grow buffers
-    times = []
+def median_times(fns, repeat: int) -> list[float]:
+    """Median wall time of each function, the calls interleaved (one of each per round), so
+    that this machine's drift (up to 50% over a minute) falls on all of them alike."""
+    for fn in fns:
+        fn()  # compile, grow buffers
+    times = [[] for _ in fns]
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+        for fn, spent in zip(fns, times):
+            t0 = time.perf_counter()
+            fn()
+            spent.append(time.perf_counter() - t0)
+    return [float(np.median(spent)) for spent in times]
 
 
 class Ours:
@@ -134,12 +138,12 @@ def placements_table(sections: int, repeat: int, fcl_ok: bool) -> None:
     for placement in PLACEMENTS:
         a, b = torus_pair(sections, placement)
         ours = Ours(a, b)
-        t_ours = median_time(ours.query, repeat)
+        theirs = FCL(a, b) if fcl_ok else None
+        t_ours, t_fcl = median_times([ours.query, theirs.query], repeat) if fcl_ok else (
+            median_times([ours.query], repeat)[0], None)
         n_ours = ours.query()
         line = [placement, len(a.faces) + len(b.faces), t_ours, n_ours, ours.pipeline.grid.n_pairs]
         if fcl_ok:
-            theirs = FCL(a, b)
-            t_fcl = median_time(theirs.query, repeat)
             n_fcl = theirs.query()
             line += [t_fcl, n_fcl]
             only_fcl = theirs.pairs() - ours.pairs()
@@ -176,8 +180,10 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None
         n_tris = len(a.faces) + len(b.faces)
         ours = Ours(a, b)
         reps = max(3, min(repeat, int(2e6 // n_tris)))
-        t_ours = median_time(ours.query, reps)
-        t_fcl = median_time(FCL(a, b).query, reps) if fcl_ok else float("nan")
+        if fcl_ok:
+            t_ours, t_fcl = median_times([ours.query, FCL(a, b).query], reps)
+        else:
+            t_ours, t_fcl = median_times([ours.query], reps)[0], float("nan")
         rows.append((n_tris, t_ours, t_fcl))
         print(f"{'':26s} {n_tris:9d} {1e3 * t_ours:9.2f} {1e9 * t_ours / n_tris:7.1f} {1e3 * t_fcl:9.2f} "
               f"{ours.query():9d}", flush=True)
