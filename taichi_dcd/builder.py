@@ -236,6 +236,7 @@ class ModelBuilder:
                 tri_body=_from(scalar_field(n_t, i32), np.concatenate(tri_body)),
                 tri_indices_np=np.concatenate(tris).astype(np.int32),
                 tri_body_np=np.concatenate(tri_body),
+                body_kind_np=kind.copy(),
             )
             if has_soft:
                 m.edge_indices = _from(vec_field(n_e, 2, i32), np.concatenate(edges).astype(np.int32))

@@ -12,29 +12,35 @@ Taichi version) the bound kernel makes an ordinary call instead.
 
 from __future__ import annotations
 
+
 import taichi as ti
 from taichi.lang import impl
+from taichi.lang.matrix import VectorType
 from taichi.types import ndarray_type, primitive_types
 
-_NDARRAY, _FLOAT, _INT = 0, 1, 2
+_NDARRAY, _FLOAT, _INT, _VECTOR = 0, 1, 2, 3
 
 
 class BoundKernel:
     """A Taichi kernel bound to its arguments.
 
-    kernel: a function decorated with @ti.kernel; args: all of its arguments, in
-    order. Ndarray and template arguments stay bound for the life of the object
-    (bind again after reallocating an array); `bound(*scalars)` launches with new
-    values for the scalar (int or float) arguments, in order, or the bound ones if
-    none are given, and returns what the kernel returns.
+    kernel: a function decorated with @ti.kernel; args: all of its arguments, in order.
+    Ndarray, vector and template arguments stay bound for the life of the object (bind
+    again after reallocating an array); `bound(*scalars)` launches with new values for
+    the scalar (int or float) arguments, in order, or the bound ones if none are given,
+    and returns what the kernel returns. A method of a @ti.data_oriented object is
+    accepted but called the ordinary way: launched through a binding, the solver's frame
+    kernel crashed once Taichi had been reset and started again in the same process.
     """
 
     def __init__(self, kernel, *args):
         self.kernel = kernel
+        self.name = getattr(kernel, "__name__", None) or "kernel"
         self.args = list(args)
-        self._scalar_positions = [k for k, value in enumerate(self.args)
-                                  if isinstance(value, (int, float)) and not isinstance(value, bool)]
+        self._scalar_positions = [k for k, value in enumerate(self.args) if _is_scalar(value)]
         self._fast = False
+        if hasattr(kernel, "_kernel_owner"):
+            return
         try:
             self._bind()
         except (AttributeError, TypeError, KeyError, ValueError):
@@ -59,6 +65,8 @@ class BoundKernel:
             elif id(annotation) in primitive_types.integer_type_ids and annotation is not bool:
                 slots.append((slot, _INT, position))
                 scalar_positions.append(position)
+            elif isinstance(annotation, VectorType) and annotation.dtype in primitive_types.real_types:
+                slots.append((slot, _VECTOR, (annotation, annotation(*(float(x) for x in value)))))
             else:
                 return
             slot += 1
@@ -69,9 +77,7 @@ class BoundKernel:
             return
         key = primal.ensure_compiled(*self.args)
         self._compiled = primal.compiled_kernels[key]
-        program = impl.get_runtime().prog
-        self._program = program
-        self._data = program.compile_kernel(program.config(), program.get_device_caps(), self._compiled)
+        self._program = impl.get_runtime().prog
         self._slots = slots
         self._primal = primal
         self._return_type = returns[0] if returns is not None else None
@@ -80,10 +86,13 @@ class BoundKernel:
     def __call__(self, *scalars):
         if scalars:
             if len(scalars) != len(self._scalar_positions):
-                raise TypeError(f"{self.kernel.__name__}: {len(self._scalar_positions)} scalar argument(s) "
+                raise TypeError(f"{self.name}: {len(self._scalar_positions)} scalar argument(s) "
                                 f"expected, got {len(scalars)}")
             for position, value in zip(self._scalar_positions, scalars):
                 self.args[position] = value
+        if self._fast and impl.get_runtime().prog is not self._program:
+            self._fast = False  # Taichi was reset since the binding: its kernels are gone
+            self._bind()
         if not self._fast:
             return self.kernel(*self.args)
         # A launch context is filled once per launch: Taichi copies it to the kernel's
@@ -94,9 +103,16 @@ class BoundKernel:
                 context.set_arg_ndarray((slot,), value)
             elif kind == _FLOAT:
                 context.set_arg_float((slot,), float(self.args[value]))
-            else:
+            elif kind == _INT:
                 context.set_arg_int((slot,), int(self.args[value]))
-        self._program.launch_kernel(self._data, context)
+            else:
+                annotation, vector = value
+                annotation.set_kernel_struct_args(vector, context, (slot,))
+        # Looked up at every launch, as Taichi does: the compiled code it returns is a
+        # reference into Taichi's cache, which compiling other kernels may move.
+        program = self._program
+        data = program.compile_kernel(program.config(), program.get_device_caps(), self._compiled)
+        program.launch_kernel(data, context)
         if self._return_type is None:
             return None
         ti.sync()
@@ -113,7 +129,7 @@ class Launcher:
     `launcher(kernel, *args)` behaves as `kernel(*args)`. Arrays are told apart by
     identity, which is safe because the cached BoundKernel keeps them alive; only the
     `keep` most recent bindings per kernel are kept (arrays replaced by larger ones are
-    released).
+    released). A vector argument is bound too: pass the same object each time.
     """
 
     def __init__(self, keep: int = 4):

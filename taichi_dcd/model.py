@@ -80,6 +80,7 @@ class Model:
     edge_rest: ti.Field | None = None
     tri_indices_np: np.ndarray = field(default=None, repr=False)
     tri_body_np: np.ndarray = field(default=None, repr=False)
+    body_kind_np: np.ndarray = field(default=None, repr=False)  # a copy of body_kind, read every frame
 
     def body_index(self, name: str) -> int:
         for k, b in enumerate(self.bodies):

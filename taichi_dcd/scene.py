@@ -15,7 +15,7 @@ import trimesh
 from . import runtime
 from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
-from .model import SOFT, STATIC
+from .model import RIGID, SOFT, STATIC
 from .shapes import make_shape
 from .tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
 
@@ -78,6 +78,7 @@ class Scene:
         self.warnings = builder.warnings  # one line per mesh repair
         self.model, self.state = builder.finalize()
         self.warnings += precision_warnings(self.model, self.vertices(), config.sim)
+        self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
                                  length_scale=config.sim.length_scale)
         self.frame = 0
@@ -124,15 +125,12 @@ class Scene:
         bodies = self.model.bodies
         if len(bodies) < 2:
             return sim.substeps
-        velocity = self.body_velocities()
-        spin = np.linalg.norm(self.body_angular_velocities(), axis=1) * np.array([b.reach for b in bodies])
-        x = self.vertices()
-        if self.model.has_soft:
-            vv = self.state.vertex_v.to_numpy()[: self.model.n_vertices].astype(np.float64)
-            for k, b in enumerate(bodies):
-                if b.kind == "soft":  # its particles' speeds about their mean velocity
-                    spin[k] = np.linalg.norm(vv[b.vertex_start:b.vertex_start + b.vertex_count] - velocity[k],
-                                             axis=1).max()
+        # One read of the state: per body velocity, motion about it, vertex box.
+        summary = self.solver.body_summary_numpy()
+        velocity, box_lo, box_hi = summary[:, 0:3], summary[:, 4:7], summary[:, 7:10]
+        # A rigid body's points move |ω|·reach about its centre; a soft body's particles are
+        # summarised by their fastest speed about its mean velocity.
+        spin = summary[:, 3] * np.where(self.model.body_kind_np == RIGID, self._reach, 1.0)
         speed = np.linalg.norm(velocity, axis=1) + spin
         moving = np.array([b.kind != "static" for b in bodies])
         speed = np.where(moving, speed + np.linalg.norm(sim.gravity) * sim.frame_dt, 0.0)
@@ -148,11 +146,9 @@ class Scene:
                 f"{TUNNEL_FRACTION:g} × the thinnest body ({bodies[thin].name!r}, {bodies[thin].thickness:.3g} m) "
                 f"in each of {cap} substeps: contacts would be missed; it needs "
                 f"--substeps {needed} (or a smaller frame_dt or a slower start) by t = {self.time:.4g} s")
-        starts = np.array([b.vertex_start for b in bodies])
         g_norm = float(np.linalg.norm(sim.gravity))
-        for_impact, a, b = substeps_for_impacts(np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts),
-                                                velocity, spin, moving, sim.frame_dt, g_norm, sim.max_impact_motion,
-                                                sim.substeps)
+        for_impact, a, b = substeps_for_impacts(box_lo, box_hi, velocity, spin, moving, sim.frame_dt, g_norm,
+                                                sim.max_impact_motion, sim.substeps)
         for_impact = min(for_impact, cap)  # deeper landings past this are the metrics' to report
         if max(needed, for_impact) == sim.substeps:
             return sim.substeps
@@ -194,7 +190,7 @@ class Scene:
         """(B, 3) linear velocities (m/s); a soft body's is its particles' mean. Velocities
         are XPBD's (x − x_prev)/h of the last substep."""
         v = self.state.body_v.to_numpy()[: self.model.n_bodies].astype(np.float64)
-        kind = self.model.body_kind.to_numpy()[: self.model.n_bodies]
+        kind = self.model.body_kind_np
         if self.model.has_soft:
             vv = self.state.vertex_v.to_numpy()
             for k, b in enumerate(self.model.bodies):
@@ -206,7 +202,7 @@ class Scene:
     def body_angular_velocities(self) -> np.ndarray:
         """(B, 3) angular velocities (rad/s, world frame) of rigid bodies; 0 for others."""
         w = self.state.body_w.to_numpy()[: self.model.n_bodies].astype(np.float64)
-        w[self.model.body_kind.to_numpy()[: self.model.n_bodies] != 1] = 0.0
+        w[self.model.body_kind_np != RIGID] = 0.0
         return w
 
     def kinetic_energy(self) -> float:

@@ -137,6 +137,9 @@ class XPBDSolver:
             self.body_last_row = scalar_field(m.n_bodies, ti.i32)
             self.body_mass = scalar_field(m.n_bodies)
             self.body_thickness = scalar_field(m.n_bodies)
+            # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
+            # speed about it (1), vertex box low (3) and high (3) corners.
+            self.body_summary = vec_field(m.n_bodies, 10)
             real = runtime.real_dtype()
             runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
             runtime.fill(self.body_thickness, np.array([min(b.thickness, 1e30) for b in m.bodies], real))
@@ -799,6 +802,38 @@ class XPBDSolver:
                 self.saved_vertex[1][i] = self.state.vertex_v[i]
 
     @ti.kernel
+    def _summarize_bodies(self):
+        """body_summary: per body its linear velocity (m/s; a soft body's particle mean, 0 for a
+        static one), the fastest motion about it (|ω| in rad/s for a rigid body, the largest
+        particle speed about the mean in m/s for a soft one) and its vertices' box (m)."""
+        for b in range(ti.static(self.model.n_bodies)):
+            r = self.model.body_vertex_range[b]
+            lo = vec3(ti.math.inf)
+            hi = vec3(-ti.math.inf)
+            for i in range(r[0], r[1]):
+                lo = ti.min(lo, self.state.vertex_x[i])
+                hi = ti.max(hi, self.state.vertex_x[i])
+            v = vec3(0.0)
+            spin = 0.0
+            if self.model.body_kind[b] == RIGID:
+                v = self.state.body_v[b]
+                spin = self.state.body_w[b].norm()
+            if ti.static(self.model.has_soft):
+                if self.model.body_kind[b] == SOFT:
+                    for i in range(r[0], r[1]):
+                        v += self.state.vertex_v[i]
+                    v /= ti.max(r[1] - r[0], 1)
+                    for i in range(r[0], r[1]):
+                        spin = ti.max(spin, (self.state.vertex_v[i] - v).norm())
+            self.body_summary[b] = ti.Vector([v[0], v[1], v[2], spin, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]])
+
+    def body_summary_numpy(self) -> np.ndarray:
+        """(B, 10) float64: per body velocity (3), motion about it (1: |ω| rigid, particle speed
+        soft), vertex box low (3) and high (3), at the current state."""
+        self._summarize_bodies()
+        return self.body_summary.to_numpy()[: self.model.n_bodies].astype(np.float64)
+
+    @ti.kernel
     def _restore_state(self):
         """Return to the frame's snapshot."""
         for b in range(ti.static(self.model.n_bodies)):
@@ -953,7 +988,7 @@ class XPBDSolver:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
         first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
-        gravity = ti.Vector(list(self.gravity))
+        gravity = self._gravity_vector()
         if self.use_grid:
             count, status = self._step_grid(h, substeps, iterations, first_kick)
         else:
@@ -976,8 +1011,16 @@ class XPBDSolver:
                                   f"by t = {self.state.time:.4g} s")
         return count
 
+    def _gravity_vector(self):
+        """self.gravity as a Taichi vector (made again only when it changes)."""
+        values = tuple(float(g) for g in self.gravity)
+        if getattr(self, "_gravity_values", None) != values:
+            self._gravity_values = values
+            self._gravity_ti = ti.Vector(list(values))
+        return self._gravity_ti
+
     def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
-        gravity = ti.Vector(list(self.gravity))
+        gravity = self._gravity_vector()
         g_norm = float(np.linalg.norm(self.gravity))
         n = status = 0
         timing = self.phase_seconds

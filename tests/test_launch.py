@@ -92,3 +92,43 @@ def test_bounds_are_still_checked_in_debug_mode(f64):
     assert bound() == 7
     with pytest.raises(Exception, match="(?i)out of bound"):
         bound(5)
+
+
+@ti.kernel
+def _add_steps(step: vec3, times: ti.i32, out: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.i32:
+    total = vec3(0.0)
+    ti.loop_config(serialize=True)
+    for i in range(times):
+        total += step
+    out[0] = total
+    return times
+
+
+@ti.data_oriented
+class _Accumulator:
+    def __init__(self):
+        self.total = ti.Vector.field(3, ti.f64, shape=())
+
+    @ti.kernel
+    def add(self, step: vec3, times: ti.i32, out: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.i32:
+        ti.loop_config(serialize=True)
+        for i in range(times):
+            self.total[None] += step
+        out[0] = self.total[None]
+        return times
+
+
+def test_vector_arguments_and_methods_of_data_oriented_objects(f64):
+    """A vector argument is bound like an array; a method of a data-oriented object (the
+    solver's kernels) is called the ordinary way and gives the same results."""
+    out = ti.ndarray(vec3, shape=1)
+    step = ti.Vector([1.0, -2.0, 0.5])
+    bound = BoundKernel(_add_steps, step, 3, out)
+    assert bound._fast
+    assert bound(4) == 4
+    np.testing.assert_allclose(out.to_numpy()[0], [4.0, -8.0, 2.0])
+    acc = _Accumulator()
+    method = BoundKernel(acc.add, step, 3, out)
+    assert not method._fast
+    assert method(2) == 2 and Launcher()(acc.add, step, 1, out) == 1
+    np.testing.assert_allclose(out.to_numpy()[0], [3.0, -6.0, 1.5])
