@@ -108,8 +108,10 @@ class BoundKernel:
             else:
                 annotation, vector = value
                 annotation.set_kernel_struct_args(vector, context, (slot,))
-        # Looked up at every launch, as Taichi does: the compiled code it returns is a
-        # reference into Taichi's cache, which compiling other kernels may move.
+        # Fields declared since the last launch are allocated first, and the compiled code
+        # is looked up at every launch, as Taichi does (it is a reference into Taichi's
+        # cache, which compiling other kernels may move).
+        impl.get_runtime().materialize()
         program = self._program
         data = program.compile_kernel(program.config(), program.get_device_caps(), self._compiled)
         program.launch_kernel(data, context)
