@@ -12,7 +12,6 @@ Taichi version) the bound kernel makes an ordinary call instead.
 
 from __future__ import annotations
 
-
 import taichi as ti
 from taichi.lang import impl
 from taichi.lang.matrix import VectorType

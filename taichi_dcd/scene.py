@@ -208,7 +208,7 @@ class Scene:
     def kinetic_energy(self) -> float:
         """Total kinetic energy (J) of rigid bodies (translation + rotation) and soft particles."""
         m = self.model
-        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        kind = m.body_kind_np
         inv_mass = m.body_inv_mass.to_numpy()[: m.n_bodies]
         inertia = m.body_inertia.to_numpy()[: m.n_bodies]
         v, w, q = self.state.body_v.to_numpy(), self.state.body_w.to_numpy(), self.body_rotations()
@@ -229,7 +229,7 @@ class Scene:
         origin (rigid bodies by their centre of mass, soft bodies particle by particle)."""
         m = self.model
         g = np.asarray(self.config.sim.gravity, np.float64)
-        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        kind = m.body_kind_np
         inv_mass = m.body_inv_mass.to_numpy()[: m.n_bodies].astype(np.float64)
         x = self.state.body_x.to_numpy()[: m.n_bodies].astype(np.float64)
         rigid = kind == 1

@@ -49,8 +49,9 @@ ivec3 = ti.types.vector(3, ti.i32)
 # Above this many triangle pairs between body boxes (summed over body pairs, upper
 # bound) a substep uses the uniform grid instead of the in-kernel all-pairs test.
 BRUTE_FORCE_MAX_PAIRS = 200_000
-# Contacts are checked for duplicates while the buffer holds at most this many rows
-# (the check is quadratic; large scenes' contacts rarely share points exactly).
+# Contacts are checked for duplicates while the buffer holds at most this many rows (each
+# check walks the moved body's rows, so one body with thousands of contacts is quadratic;
+# large scenes' contacts rarely share points exactly).
 DEDUP_MAX_ROWS = 4096
 # The grid path bins moving boxes inflated by this fraction of a grid cell and reuses the
 # candidate pairs until a vertex has moved that far (the contacts are exact either way).
@@ -114,7 +115,7 @@ class XPBDSolver:
         self.bound = float(bound)
         self.depenetration_speed = DEPENETRATION_SPEED * float(np.sqrt(length_scale))
         m = model
-        kind = m.body_kind.to_numpy()[: m.n_bodies]
+        kind = m.body_kind_np
         tri_counts = np.array([b.tri_count for b in m.bodies])
         moving = kind != STATIC
         pairs_upper = sum(int(tri_counts[a] * tri_counts[b]) for a in range(m.n_bodies)
@@ -988,7 +989,7 @@ class XPBDSolver:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
         first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
-        gravity = self._gravity_vector()
+        gravity = ti.Vector(list(self.gravity))
         if self.use_grid:
             count, status = self._step_grid(h, substeps, iterations, first_kick)
         else:
@@ -1011,16 +1012,8 @@ class XPBDSolver:
                                   f"by t = {self.state.time:.4g} s")
         return count
 
-    def _gravity_vector(self):
-        """self.gravity as a Taichi vector (made again only when it changes)."""
-        values = tuple(float(g) for g in self.gravity)
-        if getattr(self, "_gravity_values", None) != values:
-            self._gravity_values = values
-            self._gravity_ti = ti.Vector(list(values))
-        return self._gravity_ti
-
     def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
-        gravity = self._gravity_vector()
+        gravity = ti.Vector(list(self.gravity))
         g_norm = float(np.linalg.norm(self.gravity))
         n = status = 0
         timing = self.phase_seconds
