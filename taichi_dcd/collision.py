@@ -15,7 +15,7 @@ from .broadphase import UniformGrid, ivec2, ivec5
 from .contacts import Contacts
 from .geometry import vec3
 from .launch import Launcher
-from .narrowphase import collide_triangle_pair, touching_planes
+from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 
 
 @ti.kernel
@@ -32,10 +32,12 @@ def _collide_candidates(
     contact_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
     serial: ti.template(),
     keep_touching: ti.template(),
+    keep_pressed: ti.template(),
 ) -> ti.i32:
     """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
-    intersecting ones (and with keep_touching those it calls touching, with side -1) and
-    returns how many there are (more than the capacity on overflow)."""
+    intersecting ones (and with keep_touching those it calls touching, with keep_pressed
+    those pressed through each other, with side -1) and returns how many there are (more
+    than the capacity on overflow)."""
     contact_count[0] = 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
@@ -49,6 +51,10 @@ def _collide_candidates(
             if not hit:
                 which, _, _, _ = touching_planes(a0, a1, a2, b0, b1, b2)
                 keep = which >= 0
+        if ti.static(keep_pressed):
+            if not keep:
+                a_behind, b_behind, _, _, _ = pressed_through(a0, a1, a2, b0, b1, b2)
+                keep = a_behind or b_behind
         if keep:
             slot = ti.atomic_add(contact_count[0], 1)
             if slot < contact_depth.shape[0]:
@@ -69,14 +75,17 @@ class CollisionPipeline:
     of where they were binned; the contacts are exact either way). keep_touching: the
     contacts also hold the pairs the narrow phase calls touching (one triangle crossing
     the other's plane, the other only touching this one's; side -1, depth 0), from which
-    the solver makes its touching contacts.
+    the solver makes its touching contacts. keep_pressed: likewise the pairs facing each
+    other with one triangle wholly behind the other's plane (narrowphase.pressed_through),
+    from which the solver makes contacts for soft patches sagged through a face.
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
-                 skin: float = 0.0, keep_touching: bool = False):
+                 skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False):
         self.keep_touching = bool(keep_touching)
+        self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
                                 pair_capacity=pair_capacity, skin=skin)
         self.contacts = Contacts(contact_capacity)
@@ -96,7 +105,7 @@ class CollisionPipeline:
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
                                     c.pair, c.depth, c.normal, c.side, c.point, c.counter,
-                                    runtime.serial_loops(n_pairs), self.keep_touching)
+                                    runtime.serial_loops(n_pairs), self.keep_touching, self.keep_pressed)
             if n <= c.capacity:
                 break
             c.grow(n)

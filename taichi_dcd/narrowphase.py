@@ -51,6 +51,12 @@ from .geometry import (cross2, has_area, lex_compare, longest_edge_sq, plane_fra
                        strictly_inside_2d, to_frame, vec2, vec3)
 
 
+# pressed_through needs a pair to face each other this squarely (N_A·N_B ≤ -cos 45°): a
+# patch sagged through a face stays close to parallel to it, while a membrane draped over
+# a sharp edge, behind one face's plane but outside the body, is not parallel to that face.
+PRESSED_MIN_FACING = 0.7071
+
+
 @ti.func
 def crossing_interval(p0: vec3, p1: vec3, p2: vec3, s: vec3, line: vec3):
     """Möller's interval: where triangle (p0, p1, p2) crosses the other plane, as
@@ -309,6 +315,36 @@ def touching_planes(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3):
         elif straddles(s_b) and touches(s_a):
             which = 1
     return which, n_a, n_b, floor
+
+
+@ti.func
+def pressed_through(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3):
+    """Whether one triangle of a pair lies wholly behind or on the other's plane, behind it
+    by more than tol·L somewhere, the two facing each other (N_A·N_B ≤ -PRESSED_MIN_FACING): a
+    flat patch of a surface pushed through a parallel face. Neither straddles the other's
+    plane, so the unified test sees nothing (Möller rejects the pair); a soft body resting
+    on a face gets there by sagging. Returns (a_behind, b_behind, n_a, n_b, floor): whether A
+    is the triangle behind B's plane, whether B is behind A's (both when the planes
+    coincide), the unit normals and the distance treated as zero, tol·L."""
+    tol = ti.static(runtime.tolerance())
+    size = ti.sqrt(ti.max(longest_edge_sq(a0, a1, a2), longest_edge_sq(b0, b1, b2)))
+    floor = tol * size
+    a_behind = False
+    b_behind = False
+    n_a = vec3(0.0)
+    n_b = vec3(0.0)
+    cross_a = (a1 - a0).cross(a2 - a0)
+    cross_b = (b1 - b0).cross(b2 - b0)
+    len_a, len_b = cross_a.norm(), cross_b.norm()
+    # Facing first, on the raw normals: most candidate pairs leave here.
+    if (cross_a.dot(cross_b) <= -PRESSED_MIN_FACING * len_a * len_b
+            and len_a > floor * size and len_b > floor * size):
+        n_a, n_b = cross_a / len_a, cross_b / len_b
+        s_a = snap_to_zero(vec3(n_b.dot(a0 - b0), n_b.dot(a1 - b0), n_b.dot(a2 - b0)), floor * floor)
+        s_b = snap_to_zero(vec3(n_a.dot(b0 - a0), n_a.dot(b1 - a0), n_a.dot(b2 - a0)), floor * floor)
+        a_behind = s_a.max() <= 0.0 and s_a.min() < 0.0
+        b_behind = s_b.max() <= 0.0 and s_b.min() < 0.0
+    return a_behind, b_behind, n_a, n_b, floor
 
 
 @ti.func

@@ -37,7 +37,7 @@ from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
 from .contacts import ContactConstraints
 from .geometry import barycentric, longest_edge_sq
 from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
-from .narrowphase import collide_triangle_pair, touching_planes
+from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
                     gyroscopic_step, integrate_rotation, quat_rotate)
 
@@ -67,6 +67,10 @@ DEPENETRATION_SPEED = 0.2
 # In a contact between bodies stacked on the ground, the lower body holds still when the
 # upper one is at least this many times heavier (XPBDSolver.takes_part).
 SHOCK_MASS_RATIO = 10.0
+# A soft triangle's box is inflated by this fraction of its body's thickness: a patch
+# sagged wholly behind a flat face has a box that no longer meets the face's (flat) box,
+# and would drop out of the broad phase before pressed_through could see it.
+SOFT_BOX_MARGIN = 0.05
 # Contact rows a triangle pair can need: its deepest point and up to three more vertices
 # of the moved triangle, and with a soft body up to three of the other's.
 VERTEX_ROWS_PER_PAIR = 4
@@ -144,6 +148,9 @@ class XPBDSolver:
             real = runtime.real_dtype()
             runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
             runtime.fill(self.body_thickness, np.array([min(b.thickness, 1e30) for b in m.bodies], real))
+            box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * np.array([min(b.thickness, 1e30) for b in m.bodies]), 0.0)
+            self.body_box_margin = scalar_field(m.n_bodies)
+            runtime.fill(self.body_box_margin, box_margin.astype(real))
             self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
             # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
             self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
@@ -154,7 +161,8 @@ class XPBDSolver:
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
                                               pair_capacity=max(1024, 4 * m.n_tris),
                                               contact_capacity=max(1024, m.n_tris), skin=GRID_SKIN,
-                                              keep_touching=True)
+                                              margin=float(box_margin.max(initial=0.0)), keep_touching=True,
+                                              keep_pressed=m.has_soft)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
         self.last_contact_count = 0
         # Set to a dict to have the grid path add up the wall seconds of its phases
@@ -284,7 +292,8 @@ class XPBDSolver:
         p0, p1, p2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
         lo = ti.min(p0, p1, p2)
         hi = ti.max(p0, p1, p2)
-        pad = ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+        pad = (ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+               + self.body_box_margin[self.model.tri_body[t]])
         self.tri_lo[t] = lo - pad
         self.tri_hi[t] = hi + pad
 
@@ -398,11 +407,41 @@ class XPBDSolver:
             side = ti.select(found, 0, -1)
         rows = n
         if side >= 0:
-            if not self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal):
+            duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
+            if duplicate:
+                # The deepest point is a vertex another pair already made a row of. Another
+                # candidate vertex of this triangle takes the row instead: without a row here,
+                # add_vertex_contacts would never visit this triangle, and a vertex all of whose
+                # triangles lost their rows so would sink unopposed (seen: one vertex of a soft
+                # cube's bottom face, held 8 µm deep).
+                depth, point = self.next_vertex_over_face(n, t_m, t_o, normal, depth, c_tri, c_bary_moved,
+                                                          c_normal)
+                duplicate = depth <= 0.0
+            if not duplicate:
                 self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
                                    c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                 rows += 1
         return rows
+
+    @ti.func
+    def next_vertex_over_face(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, max_depth: float,
+                              c_tri: ti.template(), c_bary_moved: ti.template(), c_normal: ti.template()):
+        """The deepest vertex of t_moved behind t_other's plane (unit normal `normal`) by
+        0 < d ≤ max_depth·(1 + tol), projecting onto t_other (edges included) and not yet a
+        row of rows [0, n). Returns (d, vertex); d = 0 if there is none."""
+        tol = ti.static(runtime.tolerance())
+        im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
+        o0, o1, o2 = self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]]
+        best = 0.0
+        vertex = vec3(0.0)
+        for k in ti.static(range(3)):
+            v = self.state.vertex_x[im[k]]
+            d = normal.dot(o0 - v)
+            if d > best and d <= max_depth * (1.0 + tol):
+                if barycentric(v + d * normal, o0, o1, o2).min() >= -tol and not self.is_duplicate(
+                        n, t_moved, t_other, normal, v, c_tri, c_bary_moved, c_normal):
+                    best, vertex = d, v
+        return best, vertex
 
     @ti.func
     def touching_pair_contact(self, t_a: ti.i32, t_b: ti.i32):
@@ -414,7 +453,10 @@ class XPBDSolver:
         and the box would sink through unopposed. Returns (found, moved triangle, other
         triangle, depth, normal, point): the crossing triangle's deepest vertex behind the
         touching one, by more than tol·L and at most half the touching body's thickness,
-        projecting into it (edges included); add_vertex_contacts adds its other vertices."""
+        projecting into it (edges included); add_vertex_contacts adds its other vertices.
+        With a soft body, failing that, a pair pressed through each other (a soft patch
+        sagged wholly behind a face, narrowphase.pressed_through) gives the same contact
+        for the triangle behind the other's plane."""
         ia, ib = self.model.tri_indices[t_a], self.model.tri_indices[t_b]
         a0, a1, a2 = self.state.vertex_x[ia[0]], self.state.vertex_x[ia[1]], self.state.vertex_x[ia[2]]
         b0, b1, b2 = self.state.vertex_x[ib[0]], self.state.vertex_x[ib[1]], self.state.vertex_x[ib[2]]
@@ -423,14 +465,21 @@ class XPBDSolver:
         depth = 0.0
         normal = vec3(0.0)
         point = vec3(0.0)
+        static_a = self.model.body_kind[self.model.tri_body[t_a]] == STATIC
+        static_b = self.model.body_kind[self.model.tri_body[t_b]] == STATIC
         which, n_a, n_b, floor = touching_planes(a0, a1, a2, b0, b1, b2)
         # The crossing triangle moves: a static one would push the other body from its
         # own side, a second copy of the same contact.
-        if which == 0 and self.model.body_kind[self.model.tri_body[t_a]] != STATIC:
+        which = ti.select((which == 0 and static_a) or (which == 1 and static_b), -1, which)
+        if which < 0 and self.involves_soft(t_a, t_b):
+            # A soft patch sagged through a face: the triangle behind the other's plane moves.
+            a_behind, b_behind, n_a, n_b, floor = pressed_through(a0, a1, a2, b0, b1, b2)
+            which = ti.select(a_behind and not static_a, 0, ti.select(b_behind and not static_b, 1, -1))
+        if which == 0:
             depth, point = deepest_vertex_behind(a0, a1, a2, b0, b1, b2, n_b, floor,
                                                  0.5 * self.body_thickness[self.model.tri_body[t_b]], tol)
             normal = n_b
-        elif which == 1 and self.model.body_kind[self.model.tri_body[t_b]] != STATIC:
+        elif which == 1:
             depth, point = deepest_vertex_behind(b0, b1, b2, a0, a1, a2, n_a, floor,
                                                  0.5 * self.body_thickness[self.model.tri_body[t_a]], tol)
             normal = n_a
