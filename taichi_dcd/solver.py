@@ -147,8 +147,9 @@ class XPBDSolver:
             self.body_summary = vec_field(m.n_bodies, 10)
             real = runtime.real_dtype()
             runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
-            runtime.fill(self.body_thickness, np.array([min(b.thickness, 1e30) for b in m.bodies], real))
-            box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * np.array([min(b.thickness, 1e30) for b in m.bodies]), 0.0)
+            thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
+            runtime.fill(self.body_thickness, thickness.astype(real))
+            box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * thickness, 0.0)
             self.body_box_margin = scalar_field(m.n_bodies)
             runtime.fill(self.body_box_margin, box_margin.astype(real))
             self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
