@@ -132,7 +132,7 @@ class Scene:
         # summarised by their fastest speed about its mean velocity.
         spin = summary[:, 3] * np.where(self.model.body_kind_np == RIGID, self._reach, 1.0)
         speed = np.linalg.norm(velocity, axis=1) + spin
-        moving = np.array([b.kind != "static" for b in bodies])
+        moving = self.model.body_kind_np != STATIC
         speed = np.where(moving, speed + np.linalg.norm(sim.gravity) * sim.frame_dt, 0.0)
         fastest = np.argsort(-speed)[:2]
         motion = float(speed[fastest].sum()) * sim.frame_dt
