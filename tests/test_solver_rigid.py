@@ -1,9 +1,9 @@
 """XPBD rigid bodies against answers known in advance: free fall, resting contact,
 Coulomb friction on an incline, momentum conservation, and a tilted box settling flat.
 
-Free fall and the free collision run in Taichi's debug mode (bounds checks through the
-frame kernel, contacts included); the others run whole scenes without it (`f64_scene`):
-each debug-mode scene compiles its kernel for ~45 s here."""
+The free collision runs in Taichi's debug mode (bounds checks through the frame kernel,
+contacts included); the others run without it (`f64_scene`): each debug-mode scene
+compiles its kernel for ~45 s here."""
 
 import math
 
@@ -30,7 +30,7 @@ def rotation_angle(q) -> float:
     return 2.0 * math.acos(min(1.0, abs(q[0])))
 
 
-def test_free_fall_follows_the_parabola_exactly(f64):
+def test_free_fall_follows_the_parabola_exactly(f64_scene):
     """No contacts: x(t) = x0 + v0·t + g·t²/2 to 1e-9 m, and the rotation stays identity."""
     x0, v0 = np.array([0.1, 2.0, -0.3]), np.array([0.5, 3.0, -1.0])
     scene = make_scene([box("b", (0.2, 0.3, 0.4), x0, velocity=list(v0))], gravity=[0.0, -G, 0.0])
