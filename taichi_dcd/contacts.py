@@ -92,8 +92,9 @@ class ContactConstraints(_GrowableBuffer):
     point's plane. `budget[k]` is how much more of C (m) it may correct this substep (see
     solver.DEPENETRATION_SPEED); on a row with a soft body it is instead the depth (m) the
     row may leave (a soft body's own constraints move the anchors back and forth between
-    sweeps, so a spent budget would stop the row halfway), `lambda_n[k]`, `lambda_t[k]` the
-    normal and static-friction multipliers accumulated this substep (kg·m), `vn0[k]`
+    sweeps, so a spent budget would stop the row halfway), `lambda_n[k]` the
+    normal multiplier accumulated this substep (kg·m), `lambda_t[k]` the static-friction one
+    (vec3 in the tangent plane, kg·m: corrections that point different ways partly cancel), `vn0[k]`
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s).
     """
@@ -107,7 +108,7 @@ class ContactConstraints(_GrowableBuffer):
         self.normal = ti.ndarray(vec3, shape=capacity)
         self.budget = ti.ndarray(real, shape=capacity)
         self.lambda_n = ti.ndarray(real, shape=capacity)
-        self.lambda_t = ti.ndarray(real, shape=capacity)
+        self.lambda_t = ti.ndarray(ti.types.vector(3, real), shape=capacity)
         self.vn0 = ti.ndarray(real, shape=capacity)
         self.impulse_t = ti.ndarray(vec3, shape=capacity)
 

@@ -39,18 +39,20 @@ def quat_rotate(q: vec4, v: vec3) -> vec3:
 
 
 @ti.func
-def integrate_rotation(q: vec4, omega: vec3, h: float) -> vec4:
-    """q + h/2·[ω, 0] ⊗ q, normalised (Müller 2020, Alg. 2)."""
-    dq = quat_mul(vec4(0.0, omega[0], omega[1], omega[2]), q)
-    return (q + 0.5 * h * dq).normalized()
+def quat_exp(theta: vec3) -> vec4:
+    """Unit quaternion of the rotation by the rotation vector θ (rad): (cos(|θ|/2), sin(|θ|/2)·θ/|θ|)."""
+    angle = theta.norm()
+    # sin(a/2)/a, by its series where the division would lose digits (error < a⁴/3840).
+    s = 0.5 - angle * angle / 48.0
+    if angle > 1e-4:
+        s = ti.sin(0.5 * angle) / angle
+    return vec4(ti.cos(0.5 * angle), s * theta[0], s * theta[1], s * theta[2])
 
 
 @ti.func
-def angular_velocity(q: vec4, q_prev: vec4, h: float) -> vec3:
-    """ω = 2·vec(q ⊗ q_prev⁻¹)/h, taking the shorter way round (Müller 2020, Alg. 2)."""
-    dq = quat_mul(q, quat_conj(q_prev))
-    omega = 2.0 * vec3(dq[1], dq[2], dq[3]) / h
-    return ti.select(dq[0] >= 0.0, omega, -omega)
+def rotate_by(q: vec4, theta: vec3) -> vec4:
+    """exp(θ) ⊗ q: q turned by the world-frame rotation vector θ (rad)."""
+    return quat_mul(quat_exp(theta), q)
 
 
 @ti.func
@@ -60,10 +62,20 @@ def inv_inertia_times(q: vec4, inv_inertia_body: mat3, v: vec3) -> vec3:
 
 
 @ti.func
-def gyroscopic_step(q: vec4, inertia_body: mat3, inv_inertia_body: mat3, omega: vec3, h: float) -> vec3:
-    """ω + h·I_w⁻¹(−ω × I_w ω), evaluated in the body frame (Müller 2020, Alg. 2, line 7)."""
-    w_b = quat_rotate(quat_conj(q), omega)
-    return omega + h * quat_rotate(q, inv_inertia_body @ (-w_b.cross(inertia_body @ w_b)))
+def inertia_times(q: vec4, inertia_body: mat3, v: vec3) -> vec3:
+    """I_w·v = R I_b Rᵀ v."""
+    return quat_rotate(q, inertia_body @ quat_rotate(quat_conj(q), v))
+
+
+@ti.func
+def carried_angular_velocity(q_start: vec4, q_end: vec4, inertia_body: mat3, inv_inertia_body: mat3,
+                             omega: vec3) -> vec3:
+    """I_w(q_end)⁻¹ I_w(q_start) ω: the angular velocity at the end of a substep whose
+    rotation ran at ω, with the angular momentum I_w(q_start)·ω of that rotation kept. With
+    ω held through the next substep's rotation this is Lie-Euler with L constant: free
+    spin keeps L exactly (its gyroscopic turning included), and each impulse r × p adds to
+    it exactly (Müller 2020's explicit gyroscopic term instead loses ~h²ω² per substep)."""
+    return inv_inertia_times(q_end, inv_inertia_body, inertia_times(q_start, inertia_body, omega))
 
 
 @ti.func
@@ -75,12 +87,14 @@ def generalized_inv_mass(inv_mass: float, q: vec4, inv_inertia_body: mat3, r: ve
 
 
 @ti.func
-def apply_positional_impulse(x: vec3, q: vec4, inv_mass: float, inv_inertia_body: mat3, r: vec3, p: vec3):
-    """Pose after a positional impulse p at offset r: x + p/m and
-    q + ½[I_w⁻¹(r × p), 0] ⊗ q, normalised (Müller 2020, Eq. 6-9). Returns (x, q)."""
-    dw = inv_inertia_times(q, inv_inertia_body, r.cross(p))
-    dq = quat_mul(vec4(0.0, dw[0], dw[1], dw[2]), q)
-    return x + inv_mass * p, (q + 0.5 * dq).normalized()
+def apply_positional_impulse(x: vec3, theta: vec3, q_start: vec4, inv_mass: float, inv_inertia_body: mat3,
+                             r_start: vec3, p: vec3):
+    """Pose after a positional impulse p (kg·m) at offset r_start from the centre of mass
+    at the start of the substep: x + p/m and the substep's rotation vector θ + I_w⁻¹(r × p),
+    I_w at the start (Müller 2020, Eq. 6-9, with rotation vectors added rather than
+    quaternions composed, so that the angular impulses add up exactly). Returns (x, θ, q)."""
+    theta_new = theta + inv_inertia_times(q_start, inv_inertia_body, r_start.cross(p))
+    return x + inv_mass * p, theta_new, rotate_by(q_start, theta_new)
 
 
 @ti.func

@@ -38,8 +38,8 @@ from .contacts import ContactConstraints
 from .geometry import barycentric, longest_edge_sq
 from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
-from .rigid import (angular_velocity, apply_positional_impulse, apply_velocity_impulse, generalized_inv_mass,
-                    gyroscopic_step, integrate_rotation, quat_rotate)
+from .rigid import (apply_positional_impulse, apply_velocity_impulse, carried_angular_velocity,
+                    generalized_inv_mass, quat_rotate, rotate_by)
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -143,6 +143,9 @@ class XPBDSolver:
             # row links to the one before it (ContactConstraints.tri), for is_duplicate.
             self.body_last_row = scalar_field(m.n_bodies, ti.i32)
             self.body_mass = scalar_field(m.n_bodies)
+            # Each rigid body's rotation vector over the current substep (rad): predicted plus
+            # every angular correction, added up so that the angular impulses add up exactly.
+            self.body_theta = vec_field(m.n_bodies)
             self.body_thickness = scalar_field(m.n_bodies)
             # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
             # speed about it (1), vertex box low (3) and high (3) corners.
@@ -235,9 +238,11 @@ class XPBDSolver:
             for k in ti.static(range(3)):
                 self.state.vertex_x[idx[k]] += self.model.vertex_inv_mass[idx[k]] * bary[k] * impulse
         elif kind == RIGID:
-            self.state.body_x[b], self.state.body_q[b] = apply_positional_impulse(
-                self.state.body_x[b], self.state.body_q[b], self.model.body_inv_mass[b],
-                self.model.body_inv_inertia[b], p - self.state.body_x[b], impulse)
+            # The lever from the substep's starting centre: with the body's end velocity
+            # (x − x_prev)/h, that is what keeps angular momentum about any point exact.
+            self.state.body_x[b], self.body_theta[b], self.state.body_q[b] = apply_positional_impulse(
+                self.state.body_x[b], self.body_theta[b], self.state.body_q_prev[b], self.model.body_inv_mass[b],
+                self.model.body_inv_inertia[b], p - self.state.body_x_prev[b], impulse)
 
     @ti.func
     def anchor_kick(self, t: ti.i32, bary: vec3, p: vec3, impulse: vec3):
@@ -263,11 +268,10 @@ class XPBDSolver:
             self.state.body_v[b] += kick * h * (gravity + self.model.body_force[b] * self.model.body_inv_mass[b])
             self.state.body_x_prev[b] = self.state.body_x[b]
             self.state.body_x[b] += h * self.state.body_v[b]
-            q = self.state.body_q[b]
-            self.state.body_w[b] = gyroscopic_step(q, self.model.body_inertia[b], self.model.body_inv_inertia[b],
-                                                   self.state.body_w[b], h)
-            self.state.body_q_prev[b] = q
-            self.state.body_q[b] = integrate_rotation(q, self.state.body_w[b], h)
+            # ω is already the end-of-substep velocity that keeps L (update_body_velocity).
+            self.body_theta[b] = h * self.state.body_w[b]
+            self.state.body_q_prev[b] = self.state.body_q[b]
+            self.state.body_q[b] = rotate_by(self.state.body_q[b], self.body_theta[b])
 
     @ti.func
     def predict_particle(self, i: ti.i32, h: float, gravity: vec3, kick: float):
@@ -341,7 +345,7 @@ class XPBDSolver:
         if not (at_vertex and bary_o.min() >= -tol) and not self.involves_soft(t_moved, t_other):
             c_budget[k] = ti.min(depth, c_budget[k])
         c_lambda_n[k] = 0.0
-        c_lambda_t[k] = 0.0
+        c_lambda_t[k] = vec3(0.0)
         c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, point)
                     - self.anchor_velocity(t_other, bary_o, target)).dot(normal)
 
@@ -636,6 +640,9 @@ class XPBDSolver:
         n = c_normal[k]
         p_m = self.anchor_world(tri[0], bm, False)
         p_o = self.anchor_world(tri[1], bo, False)
+        # Both anchors take the impulse at one point: the pair's torques then cancel
+        # exactly and angular momentum is kept (the anchors drift apart sideways).
+        p_c = 0.5 * (p_m + p_o)
         gap = n.dot(p_o - p_m)
         soft = self.involves_soft(tri[0], tri[1])
         c = ti.select(soft, gap - c_budget[k], ti.min(gap, c_budget[k]))
@@ -644,8 +651,8 @@ class XPBDSolver:
             w = f_m * self.anchor_inv_mass(tri[0], bm, p_m, n) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, n)
             if w > 0.0:
                 dl = c / w
-                self.anchor_move(tri[0], bm, p_m, f_m * dl * n)
-                self.anchor_move(tri[1], bo, p_o, -f_o * dl * n)
+                self.anchor_move(tri[0], bm, p_c, f_m * dl * n)
+                self.anchor_move(tri[1], bo, p_c, -f_o * dl * n)
                 c_lambda_n[k] += dl
                 if not soft:
                     c_budget[k] -= c
@@ -655,14 +662,15 @@ class XPBDSolver:
                                c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template(),
                                c_lambda_t: ti.template()):
         """Static friction of an active contact: cancel the anchors' relative tangential
-        displacement over the substep, as far as the accumulated λ_t stays ≤ μ·λ_n (Müller
-        2020, Eq. 26-27, clamped; μ is the mean of the two bodies' friction coefficients)."""
+        displacement over the substep, as far as the accumulated vector λ_t stays within
+        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27, clamped; μ is the mean of the two bodies' friction coefficients)."""
         if c_lambda_n[k] > 0.0:
             tri = c_tri[k]
             bm, bo = c_bary_moved[k], c_bary_other[k]
             n = c_normal[k]
             p_m = self.anchor_world(tri[0], bm, False)
             p_o = self.anchor_world(tri[1], bo, False)
+            p_c = 0.5 * (p_m + p_o)
             slip = (p_m - self.anchor_world(tri[0], bm, True)) - (p_o - self.anchor_world(tri[1], bo, True))
             slip -= slip.dot(n) * n
             length = slip.norm()
@@ -676,11 +684,15 @@ class XPBDSolver:
                     # Clamped to the cone rather than all-or-nothing: several contacts of one
                     # face share the load unevenly, and dropping a contact's whole correction
                     # when its own share is exceeded makes a box stick-slip down a gentle slope.
-                    dl = ti.min(length / w, mu * c_lambda_n[k] - c_lambda_t[k])
-                    if dl > 0.0:
-                        self.anchor_move(tri[0], bm, p_m, -f_m * dl * t)
-                        self.anchor_move(tri[1], bo, p_o, f_o * dl * t)
-                        c_lambda_t[k] += dl
+                    old_t = c_lambda_t[k]
+                    new_t = old_t + (length / w) * t
+                    cap = mu * c_lambda_n[k]
+                    if new_t.norm() > cap:
+                        new_t *= cap / new_t.norm()
+                    d = new_t - old_t
+                    self.anchor_move(tri[0], bm, p_c, -f_m * d)
+                    self.anchor_move(tri[1], bo, p_c, f_o * d)
+                    c_lambda_t[k] = new_t
 
     @ti.func
     def solve_contact_velocity(self, k: ti.i32, h: float, g_norm: float, c_tri: ti.template(),
@@ -698,6 +710,7 @@ class XPBDSolver:
             n = c_normal[k]
             p_m = self.anchor_world(tri[0], bm, False)
             p_o = self.anchor_world(tri[1], bo, False)
+            p_c = 0.5 * (p_m + p_o)
             body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
             e = 0.5 * (self.model.body_restitution[body_m] + self.model.body_restitution[body_o])
             vn0 = c_vn0[k]
@@ -708,8 +721,8 @@ class XPBDSolver:
             w_n = f_m * self.anchor_inv_mass(tri[0], bm, p_m, n) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, n)
             if w_n > 0.0:
                 impulse = ((ti.max(-e * vn0, 0.0) - v.dot(n)) / w_n) * n
-                self.anchor_kick(tri[0], bm, p_m, f_m * impulse)
-                self.anchor_kick(tri[1], bo, p_o, -f_o * impulse)
+                self.anchor_kick(tri[0], bm, p_c, f_m * impulse)
+                self.anchor_kick(tri[1], bo, p_c, -f_o * impulse)
             v = self.anchor_velocity(tri[0], bm, p_m) - self.anchor_velocity(tri[1], bo, p_o)
             vt = v - v.dot(n) * n
             vt_len = vt.norm()
@@ -719,15 +732,15 @@ class XPBDSolver:
                 if w_t > 0.0:
                     mu = 0.5 * (self.model.body_friction[body_m] + self.model.body_friction[body_o])
                     # The position pass already spent λ_t/h of the Coulomb bound μ·λ_n/h.
-                    bound = ti.max(mu * c_lambda_n[k] - c_lambda_t[k], 0.0) / h
+                    bound = ti.max(mu * c_lambda_n[k] - c_lambda_t[k].norm(), 0.0) / h
                     old = c_impulse_t[k]
                     new = old - (vt_len / w_t) * t
                     new_len = new.norm()
                     if new_len > bound:
                         new *= bound / new_len
                     c_impulse_t[k] = new
-                    self.anchor_kick(tri[0], bm, p_m, f_m * (new - old))
-                    self.anchor_kick(tri[1], bo, p_o, f_o * (old - new))
+                    self.anchor_kick(tri[0], bm, p_c, f_m * (new - old))
+                    self.anchor_kick(tri[1], bo, p_c, f_o * (old - new))
 
     @ti.func
     def solve_velocities(self, n_contacts: ti.i32, iterations: ti.i32, h: float, g_norm: float,
@@ -782,10 +795,13 @@ class XPBDSolver:
     # ------------------------------------------------------------- velocities
     @ti.func
     def update_body_velocity(self, b: ti.i32, h: float):
-        """v = (x − x_prev)/h, ω = 2·vec(q ⊗ q_prev⁻¹)/h (Müller 2020, Alg. 2, lines 12-15)."""
+        """v = (x − x_prev)/h and ω = θ/h, the substep's rotation vector over h (Müller 2020,
+        Alg. 2, lines 12-15), carried to the end pose with its angular momentum kept."""
         if self.model.body_kind[b] == RIGID:
             self.state.body_v[b] = (self.state.body_x[b] - self.state.body_x_prev[b]) / h
-            self.state.body_w[b] = angular_velocity(self.state.body_q[b], self.state.body_q_prev[b], h)
+            self.state.body_w[b] = carried_angular_velocity(self.state.body_q_prev[b], self.state.body_q[b],
+                                                            self.model.body_inertia[b],
+                                                            self.model.body_inv_inertia[b], self.body_theta[b] / h)
 
     @ti.func
     def update_particle_velocity(self, i: ti.i32, h: float):
@@ -930,7 +946,7 @@ class XPBDSolver:
                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                         c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
+                         c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_vn0: ti.types.ndarray(ndim=1),
                          c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(3, ti.i32):
         """One frame of substeps, serially in one launch. Returns (most candidate pairs in a
@@ -998,7 +1014,7 @@ class XPBDSolver:
                      c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                     c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(ndim=1),
+                     c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                      c_vn0: ti.types.ndarray(ndim=1),
                      c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(2, ti.i32):
         """The grid's contacts into constraints, projection and velocities of one substep.

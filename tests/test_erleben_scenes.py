@@ -16,11 +16,8 @@ from taichi_dcd.metrics import verdict
 
 RIGID_SCENES = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole", "spike-in-pit",
                 "spike-in-crack", "wedge-in-crack"]
-KNOWN_FAILING = {
-    "wedges-crossed": "the dropped wedge balances on the crossing point as an inverted pendulum (2 m "
-                      "high, 1 cm off) and topples only at ~2.6 s, as it must; it falls 3 m and is still "
-                      "rocking on the ground at 5 s (before the impact substeps it came to rest at 4.5 s: marginal)",
-}
+# Scenes that fail today, with why (strict: a scene that starts passing must leave the list).
+KNOWN_FAILING: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("name", [
