@@ -108,7 +108,7 @@ class ContactConstraints(_GrowableBuffer):
         self.normal = ti.ndarray(vec3, shape=capacity)
         self.budget = ti.ndarray(real, shape=capacity)
         self.lambda_n = ti.ndarray(real, shape=capacity)
-        self.lambda_t = ti.ndarray(ti.types.vector(3, real), shape=capacity)
+        self.lambda_t = ti.ndarray(vec3, shape=capacity)
         self.vn0 = ti.ndarray(real, shape=capacity)
         self.impulse_t = ti.ndarray(vec3, shape=capacity)
 

@@ -56,15 +56,10 @@ def rotate_by(q: vec4, theta: vec3) -> vec4:
 
 
 @ti.func
-def inv_inertia_times(q: vec4, inv_inertia_body: mat3, v: vec3) -> vec3:
-    """I_w⁻¹·v = R I_b⁻¹ Rᵀ v, by rotating v into the body frame and back."""
-    return quat_rotate(q, inv_inertia_body @ quat_rotate(quat_conj(q), v))
-
-
-@ti.func
-def inertia_times(q: vec4, inertia_body: mat3, v: vec3) -> vec3:
-    """I_w·v = R I_b Rᵀ v."""
-    return quat_rotate(q, inertia_body @ quat_rotate(quat_conj(q), v))
+def world_times(q: vec4, matrix_body: mat3, v: vec3) -> vec3:
+    """M_w·v = R M_b Rᵀ v for a body-frame matrix M_b (an inertia tensor or its inverse),
+    by rotating v into the body frame and back."""
+    return quat_rotate(q, matrix_body @ quat_rotate(quat_conj(q), v))
 
 
 @ti.func
@@ -75,7 +70,7 @@ def carried_angular_velocity(q_start: vec4, q_end: vec4, inertia_body: mat3, inv
     ω held through the next substep's rotation this is Lie-Euler with L constant: free
     spin keeps L exactly (its gyroscopic turning included), and each impulse r × p adds to
     it exactly (Müller 2020's explicit gyroscopic term instead loses ~h²ω² per substep)."""
-    return inv_inertia_times(q_end, inv_inertia_body, inertia_times(q_start, inertia_body, omega))
+    return world_times(q_end, inv_inertia_body, world_times(q_start, inertia_body, omega))
 
 
 @ti.func
@@ -93,7 +88,7 @@ def apply_positional_impulse(x: vec3, theta: vec3, q_start: vec4, inv_mass: floa
     at the start of the substep: x + p/m and the substep's rotation vector θ + I_w⁻¹(r × p),
     I_w at the start (Müller 2020, Eq. 6-9, with rotation vectors added rather than
     quaternions composed, so that the angular impulses add up exactly). Returns (x, θ, q)."""
-    theta_new = theta + inv_inertia_times(q_start, inv_inertia_body, r_start.cross(p))
+    theta_new = theta + world_times(q_start, inv_inertia_body, r_start.cross(p))
     return x + inv_mass * p, theta_new, rotate_by(q_start, theta_new)
 
 
@@ -101,4 +96,4 @@ def apply_positional_impulse(x: vec3, theta: vec3, q_start: vec4, inv_mass: floa
 def apply_velocity_impulse(v: vec3, omega: vec3, q: vec4, inv_mass: float, inv_inertia_body: mat3, r: vec3,
                            p: vec3):
     """Velocities after an impulse p at offset r: v + p/m, ω + I_w⁻¹(r × p). Returns (v, ω)."""
-    return v + inv_mass * p, omega + inv_inertia_times(q, inv_inertia_body, r.cross(p))
+    return v + inv_mass * p, omega + world_times(q, inv_inertia_body, r.cross(p))

@@ -663,7 +663,8 @@ class XPBDSolver:
                                c_lambda_t: ti.template()):
         """Static friction of an active contact: cancel the anchors' relative tangential
         displacement over the substep, as far as the accumulated vector λ_t stays within
-        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27, clamped; μ is the mean of the two bodies' friction coefficients)."""
+        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27, clamped; μ is the mean of the two bodies'
+        friction coefficients)."""
         if c_lambda_n[k] > 0.0:
             tri = c_tri[k]
             bm, bo = c_bary_moved[k], c_bary_other[k]
@@ -686,9 +687,9 @@ class XPBDSolver:
                     # when its own share is exceeded makes a box stick-slip down a gentle slope.
                     old_t = c_lambda_t[k]
                     new_t = old_t + (length / w) * t
-                    cap = mu * c_lambda_n[k]
-                    if new_t.norm() > cap:
-                        new_t *= cap / new_t.norm()
+                    cap, new_len = mu * c_lambda_n[k], new_t.norm()
+                    if new_len > cap:
+                        new_t *= cap / new_len
                     d = new_t - old_t
                     self.anchor_move(tri[0], bm, p_c, -f_m * d)
                     self.anchor_move(tri[1], bo, p_c, f_o * d)
