@@ -106,9 +106,13 @@ class Scene:
         body is too fast even for MAX_SUBSTEP_FACTOR times the substeps."""
         sim = self.config.sim
         count = 0
+        # The all-pairs frame checks on the device whether the configured substeps do
+        # (solver.substeps_suffice); only when they do not is the choice made here.
+        check = sim.max_impact_motion if len(self.model.bodies) >= 2 else None
         for _ in range(frames):
-            substeps = self._substeps_for_next_frame()
-            count = self.solver.step_frame(sim.frame_dt, substeps, sim.iterations)
+            count = self.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations, max_impact_motion=check)
+            if count is None:
+                count = self.solver.step_frame(sim.frame_dt, self._substeps_for_next_frame(), sim.iterations)
             self.frame += 1
         return count
 

@@ -40,6 +40,7 @@ from .model import RIGID, SOFT, STATIC, Model, State, scalar_field, vec_field
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 from .rigid import (apply_positional_impulse, apply_velocity_impulse, carried_angular_velocity,
                     generalized_inv_mass, quat_rotate, rotate_by)
+from .tunnelling import TUNNEL_FRACTION
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -79,6 +80,8 @@ VERTEX_ROWS_PER_PAIR = 4
 VERTEX_ROWS_PER_PAIR_SOFT = 7
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
+# _frame_all_pairs's status when the frame needs more substeps than it was given (nothing done).
+NEEDS_CHOICE = 1
 
 
 class SimulationError(RuntimeError):
@@ -147,6 +150,7 @@ class XPBDSolver:
             # every angular correction, added up so that the angular impulses add up exactly.
             self.body_theta = vec_field(m.n_bodies)
             self.body_thickness = scalar_field(m.n_bodies)
+            self.body_reach = scalar_field(m.n_bodies)  # farthest vertex from a rigid body's centre (m)
             # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
             # speed about it (1), vertex box low (3) and high (3) corners.
             self.body_summary = vec_field(m.n_bodies, 10)
@@ -154,6 +158,7 @@ class XPBDSolver:
             runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
             thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
             runtime.fill(self.body_thickness, thickness.astype(real))
+            runtime.fill(self.body_reach, np.array([min(b.reach, 1e30) for b in m.bodies], real))
             box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * thickness, 0.0)
             self.body_box_margin = scalar_field(m.n_bodies)
             runtime.fill(self.body_box_margin, box_margin.astype(real))
@@ -170,6 +175,7 @@ class XPBDSolver:
                                               margin=float(box_margin.max(initial=0.0)), keep_touching=True,
                                               keep_pressed=m.has_soft)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
+        self.thinnest = min(min(b.thickness for b in m.bodies), 1e30)
         self.last_contact_count = 0
         # Set to a dict to have the grid path add up the wall seconds of its phases
         # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
@@ -858,8 +864,8 @@ class XPBDSolver:
         return bad
 
     # ---------------------------------------------------------------- kernels
-    @ti.kernel
-    def _save_state(self):
+    @ti.func
+    def save_state(self):
         """Copy the state to the frame's snapshot."""
         for b in range(ti.static(self.model.n_bodies)):
             self.saved_body[0][b] = self.state.body_x[b]
@@ -871,9 +877,9 @@ class XPBDSolver:
                 self.saved_vertex[0][i] = self.state.vertex_x[i]
                 self.saved_vertex[1][i] = self.state.vertex_v[i]
 
-    @ti.kernel
-    def _summarize_bodies(self):
-        """body_summary: per body its linear velocity (m/s; a soft body's particle mean, 0 for a
+    @ti.func
+    def summarize_bodies(self):
+        """body_summary (serial): per body its linear velocity (m/s; a soft body's particle mean, 0 for a
         static one), the fastest motion about it (|ω| in rad/s for a rigid body, the largest
         particle speed about the mean in m/s for a soft one) and its vertices' box (m)."""
         for b in range(ti.static(self.model.n_bodies)):
@@ -896,6 +902,65 @@ class XPBDSolver:
                     for i in range(r[0], r[1]):
                         spin = ti.max(spin, (self.state.vertex_v[i] - v).norm())
             self.body_summary[b] = ti.Vector([v[0], v[1], v[2], spin, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]])
+
+    @ti.kernel
+    def _summarize_bodies(self):
+        ti.loop_config(serialize=True)  # on the launching thread: a parallel task costs ~30 µs to start
+        for _ in range(1):
+            self.summarize_bodies()
+
+    @ti.func
+    def summary_motion(self, b: ti.i32):
+        """(velocity (m/s), bound on its points' speed about it (m/s): |ω|·reach for a rigid
+        body, the fastest particle for a soft one) of body b from body_summary; zero if static."""
+        s = self.body_summary[b]
+        kind = self.model.body_kind[b]
+        v = vec3(0.0)
+        spin = 0.0
+        if kind != STATIC:
+            v = vec3(s[0], s[1], s[2])
+            spin = s[3] * ti.select(kind == RIGID, self.body_reach[b], 1.0)
+        return v, spin
+
+    @ti.func
+    def substeps_suffice(self, substeps: ti.i32, frame_dt: float, g_norm: float, max_impact: float,
+                         thinnest: float) -> ti.i32:
+        """1 if a frame of `substeps` needs no more of them by the rules of
+        Scene._substeps_for_next_frame (tunnelling.py), applied to the same per-body summary:
+        the two fastest bodies move at most TUNNEL_FRACTION of the thinnest body's thickness
+        per substep, and no two bodies that can meet within the frame close in by more than
+        `max_impact` per substep. 0 otherwise (the caller then chooses in numpy). Serial."""
+        self.summarize_bodies()
+        ok = 1
+        n_b = ti.static(self.model.n_bodies)
+        if ti.static(n_b >= 2):
+            first = 0.0
+            second = 0.0
+            for b in range(n_b):
+                if self.model.body_kind[b] != STATIC:
+                    v, spin = self.summary_motion(b)
+                    speed = v.norm() + spin + g_norm * frame_dt
+                    if speed > first:
+                        second = first
+                        first = speed
+                    elif speed > second:
+                        second = speed
+            motion = (first + second) * frame_dt
+            if motion > 0.0 and thinnest > 0.0 and ti.ceil(motion / (TUNNEL_FRACTION * thinnest)) > substeps:
+                ok = 0
+            if max_impact > 0.0:
+                for a in range(n_b):
+                    for b in range(n_b):
+                        if a != b and (self.model.body_kind[a] != STATIC or self.model.body_kind[b] != STATIC):
+                            v_a, spin_a = self.summary_motion(a)
+                            v_b, spin_b = self.summary_motion(b)
+                            pair_motion = ((v_a - v_b).norm() + spin_a + spin_b + g_norm * frame_dt) * frame_dt
+                            s_a, s_b = self.body_summary[a], self.body_summary[b]
+                            gap = ti.max(vec3(s_a[4], s_a[5], s_a[6]) - vec3(s_b[7], s_b[8], s_b[9]),
+                                         vec3(s_b[4], s_b[5], s_b[6]) - vec3(s_a[7], s_a[8], s_a[9])).max()
+                            if gap <= pair_motion and ti.ceil(pair_motion / max_impact) > substeps:
+                                ok = 0
+        return ok
 
     def body_summary_numpy(self) -> np.ndarray:
         """(B, 10) float64: per body velocity (3), motion about it (1: |ω| rigid, particle speed
@@ -943,23 +1008,32 @@ class XPBDSolver:
 
     @ti.kernel
     def _frame_all_pairs(self, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3, first_kick: float,
-                         bound: float, depenetration: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                         bound: float, depenetration: float, check: ti.i32, max_impact: float, thinnest: float,
+                         c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
                          c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                          c_vn0: ti.types.ndarray(ndim=1),
                          c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(3, ti.i32):
-        """One frame of substeps, serially in one launch. Returns (most candidate pairs in a
-        substep, contacts of the last substep, state check: 0 or -1 - first bad body); the
-        contact buffer holds the candidates first, so it overflowed if the first exceeds its
-        capacity."""
+        """One frame of substeps, serially in one launch, from a snapshot of the state (for
+        _restore_state). With `check`, first `substeps_suffice`: if not, nothing is done and
+        the status is NEEDS_CHOICE. Returns (most candidate pairs in a substep, contacts of
+        the last substep, status: 0, NEEDS_CHOICE or -1 - first bad body); the contact buffer
+        holds the candidates first, so it overflowed if the first exceeds its capacity."""
         most = 0
         n = 0
         status = 0
         g_norm = gravity.norm()
+        ti.loop_config(serialize=True)
         for _ in range(1):
-            for sub in range(substeps):
+            run = substeps
+            if check != 0 and self.substeps_suffice(substeps, h * substeps, g_norm, max_impact, thinnest) == 0:
+                status = NEEDS_CHOICE
+                run = 0
+            else:
+                self.save_state()
+            for sub in range(run):
                 kick = ti.select(sub == 0, first_kick, 1.0)
                 for b in range(ti.static(self.model.n_bodies)):
                     self.predict_body(b, h, gravity, kick)
@@ -987,9 +1061,10 @@ class XPBDSolver:
                         self.damp_soft_body(b, h)
                 self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
                                       c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
-            for i in range(ti.static(self.model.n_vertices)):
-                self.place_vertex(i)
-            status = self.state_is_sane(bound)
+            if status == 0:
+                for i in range(ti.static(self.model.n_vertices)):
+                    self.place_vertex(i)
+                status = self.state_is_sane(bound)
         return ti.Vector([most, n, status])
 
     @ti.kernel
@@ -1021,6 +1096,7 @@ class XPBDSolver:
         """The grid's contacts into constraints, projection and velocities of one substep.
         Returns (contacts, state check)."""
         n = 0
+        ti.loop_config(serialize=True)
         for _ in range(1):
             # The same rows as the all-pairs path: the pipeline keeps touching pairs too.
             self.forget_rows()
@@ -1041,6 +1117,7 @@ class XPBDSolver:
             for b in range(ti.static(self.model.n_bodies)):
                 self.damp_soft_body(b, h)
         status = 0
+        ti.loop_config(serialize=True)
         for _ in range(1):
             self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
                                   c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
@@ -1050,23 +1127,34 @@ class XPBDSolver:
         return ti.Vector([n, status])
 
     # ----------------------------------------------------------------- python
-    def step_frame(self, frame_dt: float, substeps: int, iterations: int) -> int:
+    def step_frame(self, frame_dt: float, substeps: int, iterations: int,
+                   max_impact_motion: float | None = None) -> int | None:
         """Advance the state by frame_dt seconds in `substeps` substeps of `iterations`
         Gauss-Seidel sweeps. Returns the contact count of the last substep. Raises
-        SimulationError (naming the body) on NaN or a body beyond the bound."""
+        SimulationError (naming the body) on NaN or a body beyond the bound.
+
+        With max_impact_motion (m), the frame first checks that `substeps` are enough by the
+        rules of Scene._substeps_for_next_frame and returns None, the state untouched, if
+        they are not (or if it cannot check: the grid path); the caller then chooses the
+        substeps and steps again. On the all-pairs path the check runs inside the frame's
+        one launch, so that an ordinary frame costs no reading back of the state."""
         if substeps < 1 or iterations < 1 or not frame_dt > 0:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
         first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
-        gravity = ti.Vector(list(self.gravity))
         if self.use_grid:
+            if max_impact_motion is not None:
+                return None
             count, status = self._step_grid(h, substeps, iterations, first_kick)
         else:
-            self._save_state()
+            check = 0 if max_impact_motion is None else 1
+            gravity = ti.Vector(list(self.gravity))
             while True:
                 most, count, status = (int(v) for v in self._frame_all_pairs(
-                    substeps, iterations, h, gravity, first_kick, self.bound, self.depenetration_speed,
-                    *self.contacts.arrays()))
+                    substeps, iterations, h, gravity, first_kick, self.bound, self.depenetration_speed, check,
+                    max_impact_motion or 0.0, self.thinnest, *self.contacts.arrays()))
+                if status == NEEDS_CHOICE:
+                    return None
                 if most <= self.contacts.capacity:
                     break
                 self._restore_state()

@@ -70,3 +70,54 @@ def test_a_body_falling_onto_the_ground_takes_substeps_for_its_speed_only_when_n
     # Two static bodies that overlap never ask for substeps.
     assert substeps_for_impacts(np.zeros((2, 3)), np.ones((2, 3)), np.ones((2, 3)), np.ones(2),
                                 np.array([False, False]), 0.01, 9.8, 2e-3, 10) == (10, -1, -1)
+
+
+def test_the_frames_own_substep_check_agrees_with_the_numpy_choice(f64):
+    """The all-pairs frame checks on the device whether the configured substeps suffice
+    (solver.substeps_suffice) and only otherwise leaves the choice to numpy
+    (Scene._substeps_for_next_frame): on seeded random states of a static ground, two rigid
+    bodies and a soft ball (moved apart or together, random linear and angular velocities,
+    a random wobble of the ball's particles), the frame runs exactly when numpy would keep
+    the configured substeps, and leaves the state untouched when it would not."""
+    from taichi_dcd.config import scene_from_dict
+    from taichi_dcd.scene import Scene
+
+    scene = Scene(scene_from_dict({"sim": {"gravity": [0.0, -9.8, 0.0]}, "body": [
+        {"name": "ground", "kind": "static", "shape": "ground"},
+        {"name": "spike", "kind": "rigid", "shape": "spike", "position": [0.0, 1.0, 0.0]},
+        {"name": "box", "kind": "rigid", "shape": "box", "position": [3.0, 1.0, 0.0]},
+        {"name": "ball", "kind": "soft", "shape": "icosphere", "params": {"radius": 0.5, "subdivisions": 1},
+         "position": [-3.0, 2.0, 0.0]}]}, name="check"))
+    sim, state, model = scene.config.sim, scene.state, scene.model
+    rigid = [model.body_index("spike"), model.body_index("box")]
+    ball = model.bodies[model.body_index("ball")]
+    rng = np.random.default_rng(11)
+    x0, vertex0 = state.body_x.to_numpy(), state.vertex_x.to_numpy()
+    outcomes = []
+    for trial in range(60):
+        # Heights from touching the ground to 1 m clear of it; speeds up to ~8 m/s.
+        x, vertex_x = x0.copy(), vertex0.copy()
+        v, w = np.zeros_like(x0), np.zeros_like(x0)
+        vertex_v = np.zeros_like(vertex0)
+        for b in [*rigid, model.body_index("ball")]:
+            body = model.bodies[b]
+            shift = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.9, 0.1), rng.uniform(-0.5, 0.5)])
+            rows = slice(body.vertex_start, body.vertex_start + body.vertex_count)
+            vertex_x[rows] += shift
+            x[b] += shift
+            v[b] = rng.normal(0.0, 3.0, 3) * (rng.random() < 0.7)
+            w[b] = rng.normal(0.0, 3.0, 3) * (rng.random() < 0.5)
+        rows = slice(ball.vertex_start, ball.vertex_start + ball.vertex_count)
+        vertex_v[rows] = v[model.body_index("ball")] + rng.normal(0.0, 0.5, (ball.vertex_count, 3))
+        for field, value in [(state.body_x, x), (state.body_v, v), (state.body_w, w), (state.vertex_x, vertex_x),
+                             (state.vertex_v, vertex_v)]:
+            field.from_numpy(value)
+        expected = scene._substeps_for_next_frame() == sim.substeps
+        count = scene.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations,
+                                        max_impact_motion=sim.max_impact_motion)
+        assert (count is not None) == expected, trial
+        if count is None:
+            np.testing.assert_array_equal(state.vertex_x.to_numpy(), vertex_x)
+            np.testing.assert_array_equal(state.body_v.to_numpy(), v)
+        outcomes.append(expected)
+    assert 10 <= sum(outcomes) <= 50  # both answers are exercised
