@@ -94,7 +94,8 @@ class State:
     """Time-varying data. body_x (B,) vec3 centre of mass (m); body_q (B,) vec4 unit
     quaternion (w, x, y, z); body_v (B,) m/s; body_w (B,) rad/s, world frame; *_prev the
     same at the start of the substep. vertex_x (V,) world positions; vertex_x_prev and
-    vertex_v (V,) for soft particles. time in seconds."""
+    vertex_v (V,) for soft particles. time in seconds; frames_done and substeps_done count
+    what the solver has run."""
 
     body_x: ti.Field
     body_q: ti.Field
@@ -106,6 +107,7 @@ class State:
     vertex_x_prev: ti.Field
     vertex_v: ti.Field
     time: float = 0.0
+    frames_done: int = 0
     substeps_done: int = 0
 
 

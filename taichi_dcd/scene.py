@@ -81,7 +81,6 @@ class Scene:
         self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
                                  length_scale=config.sim.length_scale)
-        self.frame = 0
         self.fast_frames = 0                  # frames run with more substeps than configured
         self.most_substeps = config.sim.substeps
         self.fast_notice: str | None = None   # why, the first time it happened
@@ -95,6 +94,11 @@ class Scene:
         return self.state.time
 
     @property
+    def frame(self) -> int:
+        """Frames run so far (a frame that raised SimulationError included)."""
+        return self.state.frames_done
+
+    @property
     def body_names(self) -> list[str]:
         return [b.name for b in self.model.bodies]
 
@@ -105,15 +109,19 @@ class Scene:
         `fast_notice` say so). Raises solver.SimulationError on NaN or explosion, or when a
         body is too fast even for MAX_SUBSTEP_FACTOR times the substeps."""
         sim = self.config.sim
-        count = 0
-        # The all-pairs frame checks on the device whether the configured substeps do
-        # (solver.substeps_suffice); only when they do not is the choice made here.
+        count = self.solver.last_contact_count
+        # The all-pairs path runs frames in one launch and checks on the device whether the
+        # configured substeps do (solver.substeps_suffice); only a frame for which they do
+        # not is chosen here and stepped on its own.
         check = sim.max_impact_motion if len(self.model.bodies) >= 2 else None
-        for _ in range(frames):
-            count = self.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations, max_impact_motion=check)
-            if count is None:
-                count = self.solver.step_frame(sim.frame_dt, self._substeps_for_next_frame(), sim.iterations)
-            self.frame += 1
+        done = 0
+        while done < frames:
+            ran, count = self.solver.step_frames(frames - done, sim.frame_dt, sim.substeps, sim.iterations,
+                                                 max_impact_motion=check)
+            if ran == 0:
+                ran, count = self.solver.step_frames(1, sim.frame_dt, self._substeps_for_next_frame(),
+                                                     sim.iterations)
+            done += ran
         return count
 
     def _substeps_for_next_frame(self) -> int:

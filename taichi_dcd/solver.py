@@ -80,8 +80,10 @@ VERTEX_ROWS_PER_PAIR = 4
 VERTEX_ROWS_PER_PAIR_SOFT = 7
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
-# _frame_all_pairs's status when the frame needs more substeps than it was given (nothing done).
+# _frames_all_pairs's status when the next frame needs more substeps than it was given (not begun),
+# and when a frame's contacts overflowed the buffer (undone).
 NEEDS_CHOICE = 1
+OVERFLOW = 2
 
 
 class SimulationError(RuntimeError):
@@ -968,9 +970,9 @@ class XPBDSolver:
         self._summarize_bodies()
         return self.body_summary.to_numpy()[: self.model.n_bodies].astype(np.float64)
 
-    @ti.kernel
-    def _restore_state(self):
-        """Return to the frame's snapshot."""
+    @ti.func
+    def restore_state(self):
+        """Return to the frame's snapshot (serial)."""
         for b in range(ti.static(self.model.n_bodies)):
             self.state.body_x[b] = self.saved_body[0][b]
             self.state.body_q[b] = self.saved_body[1][b]
@@ -980,6 +982,8 @@ class XPBDSolver:
             for i in range(ti.static(self.model.n_vertices)):
                 self.state.vertex_x[i] = self.saved_vertex[0][i]
                 self.state.vertex_v[i] = self.saved_vertex[1][i]
+        for i in range(ti.static(self.model.n_vertices)):
+            self.place_vertex(i)
 
     @ti.func
     def project(self, n_contacts: ti.i32, iterations: ti.i32, h: float, c_tri: ti.template(),
@@ -1006,66 +1010,91 @@ class XPBDSolver:
                 self.solve_contact_friction(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                                             c_lambda_t)
 
+    @ti.func
+    def substep_all_pairs(self, iterations: ti.i32, h: float, gravity: vec3, g_norm: float, kick: float,
+                          depenetration: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                          c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                          c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template(),
+                          c_impulse_t: ti.template()):
+        """One substep with the all-pairs broad phase (Müller 2020, Alg. 2: predict, contacts,
+        projection, velocities, velocity pass; serial). Returns (rows wanted: candidate pairs or
+        contact rows, whichever more, above the buffer's capacity if it overflowed; contact rows
+        solved)."""
+        capacity = c_tri.shape[0]
+        for b in range(ti.static(self.model.n_bodies)):
+            self.predict_body(b, h, gravity, kick)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.predict_particle(i, h, gravity, kick)
+        for i in range(ti.static(self.model.n_vertices)):
+            self.place_vertex(i)
+        n = self.candidate_pairs(c_tri)
+        wanted = n
+        n = self.collide_candidates(ti.min(n, capacity), depenetration * h, c_tri, c_bary_moved, c_bary_other,
+                                    c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+        needed = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)
+        wanted = ti.max(wanted, needed)
+        n = ti.min(needed, capacity)
+        self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                     c_lambda_t)
+        for b in range(ti.static(self.model.n_bodies)):
+            self.update_body_velocity(b, h)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.update_particle_velocity(i, h)
+            for b in range(ti.static(self.model.n_bodies)):
+                self.damp_soft_body(b, h)
+        self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
+                              c_lambda_t, c_vn0, c_impulse_t)
+        return wanted, n
+
     @ti.kernel
-    def _frame_all_pairs(self, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3, first_kick: float,
-                         bound: float, depenetration: float, check: ti.i32, max_impact: float, thinnest: float,
-                         c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                         c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                         c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                         c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                         c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                         c_vn0: ti.types.ndarray(ndim=1),
-                         c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(3, ti.i32):
-        """One frame of substeps, serially in one launch, from a snapshot of the state (for
-        _restore_state). With `check`, first `substeps_suffice`: if not, nothing is done and
-        the status is NEEDS_CHOICE. Returns (most candidate pairs in a substep, contacts of
-        the last substep, status: 0, NEEDS_CHOICE or -1 - first bad body); the contact buffer
-        holds the candidates first, so it overflowed if the first exceeds its capacity."""
+    def _frames_all_pairs(self, frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
+                          first_kick: float, bound: float, depenetration: float, check: ti.i32, max_impact: float,
+                          thinnest: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                          c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                          c_vn0: ti.types.ndarray(ndim=1),
+                          c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1)) -> ti.types.vector(4, ti.i32):
+        """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
+        substep). Each frame starts from a snapshot of the state. With `check`, each frame
+        first runs `substeps_suffice`; if they do not, the launch stops before that frame
+        (NEEDS_CHOICE). A frame whose candidates overflow the contact buffer is undone and the
+        launch stops (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
+        begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
+        bad body, the bad frame counted as done)."""
+        done = 0
         most = 0
         n = 0
         status = 0
         g_norm = gravity.norm()
+        capacity = c_tri.shape[0]
         ti.loop_config(serialize=True)
         for _ in range(1):
-            run = substeps
-            if check != 0 and self.substeps_suffice(substeps, h * substeps, g_norm, max_impact, thinnest) == 0:
-                status = NEEDS_CHOICE
-                run = 0
-            else:
+            while done < frames and status == 0:
+                if check != 0 and self.substeps_suffice(substeps, h * substeps, g_norm, max_impact, thinnest) == 0:
+                    status = NEEDS_CHOICE
+                    break
                 self.save_state()
-            for sub in range(run):
-                kick = ti.select(sub == 0, first_kick, 1.0)
-                for b in range(ti.static(self.model.n_bodies)):
-                    self.predict_body(b, h, gravity, kick)
-                if ti.static(self.model.has_soft):
+                most = 0
+                for sub in range(substeps):
+                    kick = ti.select(done == 0 and sub == 0, first_kick, 1.0)
+                    wanted, n = self.substep_all_pairs(iterations, h, gravity, g_norm, kick, depenetration, c_tri,
+                                                       c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
+                                                       c_lambda_t, c_vn0, c_impulse_t)
+                    most = ti.max(most, wanted)
+                if most > capacity:
+                    self.restore_state()
+                    status = OVERFLOW
+                else:
                     for i in range(ti.static(self.model.n_vertices)):
-                        self.predict_particle(i, h, gravity, kick)
-                for i in range(ti.static(self.model.n_vertices)):
-                    self.place_vertex(i)
-                n = self.candidate_pairs(c_tri)
-                most = ti.max(most, n)
-                n = self.collide_candidates(ti.min(n, c_tri.shape[0]), depenetration * h, c_tri, c_bary_moved,
-                                            c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                needed = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other,
-                                                  c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                most = ti.max(most, needed)
-                n = ti.min(needed, c_tri.shape[0])
-                self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
-                             c_lambda_t)
-                for b in range(ti.static(self.model.n_bodies)):
-                    self.update_body_velocity(b, h)
-                if ti.static(self.model.has_soft):
-                    for i in range(ti.static(self.model.n_vertices)):
-                        self.update_particle_velocity(i, h)
-                    for b in range(ti.static(self.model.n_bodies)):
-                        self.damp_soft_body(b, h)
-                self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
-                                      c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
-            if status == 0:
-                for i in range(ti.static(self.model.n_vertices)):
-                    self.place_vertex(i)
-                status = self.state_is_sane(bound)
-        return ti.Vector([most, n, status])
+                        self.place_vertex(i)
+                    status = self.state_is_sane(bound)
+                    done += 1
+        return ti.Vector([done, most, n, status])
 
     @ti.kernel
     def _begin_substep(self, h: float, gravity: vec3, kick: float,
@@ -1138,36 +1167,57 @@ class XPBDSolver:
         they are not (or if it cannot check: the grid path); the caller then chooses the
         substeps and steps again. On the all-pairs path the check runs inside the frame's
         one launch, so that an ordinary frame costs no reading back of the state."""
+        done, count = self.step_frames(1, frame_dt, substeps, iterations, max_impact_motion)
+        return count if done else None
+
+    def step_frames(self, frames: int, frame_dt: float, substeps: int, iterations: int,
+                    max_impact_motion: float | None = None) -> tuple[int, int]:
+        """Up to `frames` frames as `step_frame`, all in one launch on the all-pairs path;
+        with max_impact_motion, stops before the first frame whose substeps do not suffice
+        (on the grid path: before any). Returns (frames done, contact count of the last
+        substep). Raises SimulationError as step_frame, after counting the bad frame."""
         if substeps < 1 or iterations < 1 or not frame_dt > 0:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
-        first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
+        done = 0
+        count = self.last_contact_count
+        status = 0
         if self.use_grid:
             if max_impact_motion is not None:
-                return None
-            count, status = self._step_grid(h, substeps, iterations, first_kick)
+                return 0, count
+            for done in range(1, frames + 1):
+                first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
+                count, status = self._step_grid(h, substeps, iterations, first_kick)
+                self._frames_advanced(1, frame_dt, substeps, count)
+                if status != 0:
+                    break
         else:
             check = 0 if max_impact_motion is None else 1
             gravity = ti.Vector(list(self.gravity))
-            while True:
-                most, count, status = (int(v) for v in self._frame_all_pairs(
-                    substeps, iterations, h, gravity, first_kick, self.bound, self.depenetration_speed, check,
-                    max_impact_motion or 0.0, self.thinnest, *self.contacts.arrays()))
-                if status == NEEDS_CHOICE:
-                    return None
-                if most <= self.contacts.capacity:
+            while done < frames:
+                first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
+                ran, most, count, status = (int(v) for v in self._frames_all_pairs(
+                    frames - done, substeps, iterations, h, gravity, first_kick, self.bound,
+                    self.depenetration_speed, check, max_impact_motion or 0.0, self.thinnest,
+                    *self.contacts.arrays()))
+                done += ran
+                self._frames_advanced(ran, frame_dt, substeps, count)
+                if status != OVERFLOW:
                     break
-                self._restore_state()
                 self.contacts.grow(most)
                 self.contact_growths += 1
-        self.state.substeps_done += substeps
-        self.state.time += frame_dt
-        self.last_contact_count = count
-        if status != 0:
+        if status < 0:
             body = self.model.bodies[-1 - status].name
             raise SimulationError(f"body {body!r} has a NaN or exploded (|x| or |v| above {self.bound:g}) "
                                   f"by t = {self.state.time:.4g} s")
-        return count
+        return done, count
+
+    def _frames_advanced(self, frames: int, frame_dt: float, substeps: int, count: int) -> None:
+        for _ in range(frames):  # time as a sum of frames, as if stepped one by one
+            self.state.frames_done += 1
+            self.state.substeps_done += substeps
+            self.state.time += frame_dt
+            self.last_contact_count = count
 
     def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
         gravity = ti.Vector(list(self.gravity))
