@@ -119,8 +119,9 @@ class Scene:
             ran, count = self.solver.step_frames(frames - done, sim.frame_dt, sim.substeps, sim.iterations,
                                                  max_impact_motion=check)
             if ran == 0:
-                ran, count = self.solver.step_frames(1, sim.frame_dt, self._substeps_for_next_frame(),
-                                                     sim.iterations)
+                with np.errstate(over="ignore", invalid="ignore"):  # an exploded body's inf speed is an error there
+                    substeps = self._substeps_for_next_frame()
+                ran, count = self.solver.step_frames(1, sim.frame_dt, substeps, sim.iterations)
             done += ran
         return count
 
