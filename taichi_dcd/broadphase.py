@@ -32,6 +32,7 @@ ivec5 = ti.types.vector(5, ti.i32)
 
 MOVING = 0
 STATIC = 1
+HIDDEN = 2  # a triangle's group when it is in neither table
 LEVELS = 32
 # Cell coordinates are clamped to ±2^30 so that they fit an i32; clamping is
 # monotonic, so far-away boxes still overlap-test exactly, only less efficiently.
@@ -441,11 +442,12 @@ class UniformGrid:
     moving vertices stay near where they were binned: moving boxes are binned inflated
     by skin × the base cell size, and a query in which no moving vertex has moved that
     far along any axis since returns the same pairs, a superset of the exact ones
-    (0: bin at every query, the exact pairs).
+    (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
+    never binned, so in no pair (faces hidden against another static body, hidden_faces.py).
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
-                 margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0):
+                 margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0, tri_hidden=None):
         runtime.ensure_init()
         tri_indices = np.ascontiguousarray(tri_indices, dtype=np.int32).reshape(-1, 3)
         m = len(tri_indices)
@@ -485,6 +487,8 @@ class UniformGrid:
         self.tri = ti.ndarray(ivec5, shape=size)
         if m:
             group = np.where(tri_static, STATIC, MOVING).astype(np.int32)
+            if tri_hidden is not None:
+                group[np.asarray(tri_hidden, dtype=bool) & tri_static] = HIDDEN
             self.tri.from_numpy(np.column_stack([tri_indices, tri_body, group]).astype(np.int32))
         real3 = ti.types.vector(3, runtime.real_type())
         self.tri_box = ti.ndarray(real3, shape=(size, 2))

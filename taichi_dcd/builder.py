@@ -16,6 +16,7 @@ import trimesh
 
 from . import runtime
 from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
+from .hidden_faces import hidden_static_faces
 from .tunnelling import mesh_thickness
 
 DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
@@ -209,6 +210,8 @@ class ModelBuilder:
 
         has_soft = bool((kind == SOFT).any())
         n_v, n_t = v_off, t_off
+        tri_hidden = np.concatenate(hidden_static_faces(
+            [(w, b.faces) for w, b in zip(vertex_world, bodies)], [k == STATIC for k in kind])).astype(np.int32)
         n_e = int(sum(len(e) for e in edges))
         i32 = ti.i32
         real = runtime.real_dtype()
@@ -234,8 +237,10 @@ class ModelBuilder:
                 vertex_inv_mass=_from(scalar_field(n_v), np.concatenate(vertex_inv_mass).astype(real)),
                 tri_indices=_from(vec_field(n_t, 3, i32), np.concatenate(tris).astype(np.int32)),
                 tri_body=_from(scalar_field(n_t, i32), np.concatenate(tri_body)),
+                tri_hidden=_from(scalar_field(n_t, i32), tri_hidden),
                 tri_indices_np=np.concatenate(tris).astype(np.int32),
                 tri_body_np=np.concatenate(tri_body),
+                tri_hidden_np=tri_hidden.astype(bool),
                 body_kind_np=kind.copy(),
             )
             if has_soft:

@@ -69,7 +69,7 @@ def _collide_candidates(
 class CollisionPipeline:
     """Broad phase + narrow phase over the triangles of several bodies.
 
-    tri_indices (m, 3), tri_body (m,), tri_static (m,) bool: as for `UniformGrid`.
+    tri_indices (m, 3), tri_body (m,), tri_static (m,) bool, tri_hidden (m,) bool: as for `UniformGrid`.
     cell_size, margin: the grid's base cell size and box inflation (scene units); skin:
     as for `UniformGrid` (candidate pairs reused while the vertices stay within skin cells
     of where they were binned; the contacts are exact either way). keep_touching: the
@@ -83,11 +83,11 @@ class CollisionPipeline:
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
-                 skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False):
+                 skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None):
         self.keep_touching = bool(keep_touching)
         self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
-                                pair_capacity=pair_capacity, skin=skin)
+                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden)
         self.contacts = Contacts(contact_capacity)
         self._launch = Launcher()
 

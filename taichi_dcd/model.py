@@ -50,7 +50,8 @@ class Model:
     decay rate of its particles' velocities relative to its rigid motion; body_rest_volume (B,) m³.
     vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
-    indices; tri_body (T,) i32. edge_indices (E,) ivec2; edge_rest (E,) m.
+    indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
+    static body's (hidden_faces.py: never in contact). edge_indices (E,) ivec2; edge_rest (E,) m.
     """
 
     bodies: list[BodyInfo]
@@ -76,10 +77,12 @@ class Model:
     vertex_inv_mass: ti.Field
     tri_indices: ti.Field
     tri_body: ti.Field
+    tri_hidden: ti.Field
     edge_indices: ti.Field | None = None
     edge_rest: ti.Field | None = None
     tri_indices_np: np.ndarray = field(default=None, repr=False)
     tri_body_np: np.ndarray = field(default=None, repr=False)
+    tri_hidden_np: np.ndarray = field(default=None, repr=False)
     body_kind_np: np.ndarray = field(default=None, repr=False)  # a copy of body_kind, read every frame
 
     def body_index(self, name: str) -> int:

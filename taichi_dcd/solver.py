@@ -175,7 +175,7 @@ class XPBDSolver:
                                               pair_capacity=max(1024, 4 * m.n_tris),
                                               contact_capacity=max(1024, m.n_tris), skin=GRID_SKIN,
                                               margin=float(box_margin.max(initial=0.0)), keep_touching=True,
-                                              keep_pressed=m.has_soft)
+                                              keep_pressed=m.has_soft, tri_hidden=m.tri_hidden_np)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
         self.thinnest = min(min(b.thickness for b in m.bodies), 1e30)
         self.last_contact_count = 0
@@ -359,9 +359,9 @@ class XPBDSolver:
 
     @ti.func
     def candidate_pairs(self, c_tri: ti.template()) -> ti.i32:
-        """Serial all-pairs broad phase: triangle pairs of different bodies (not both static)
-        whose padded boxes overlap, written to c_tri; returns their number (more than the
-        capacity on overflow)."""
+        """Serial all-pairs broad phase: triangle pairs of different bodies (not both static),
+        neither a hidden static face, whose padded boxes overlap, written to c_tri; returns
+        their number (more than the capacity on overflow)."""
         n_b = ti.static(self.model.n_bodies)
         for t in range(ti.static(self.model.n_tris)):
             self.triangle_box(t)
@@ -380,9 +380,11 @@ class XPBDSolver:
                 if ((self.model.body_kind[ba] != STATIC or self.model.body_kind[bb] != STATIC)
                         and boxes_overlap(self.body_lo[ba], self.body_hi[ba], self.body_lo[bb], self.body_hi[bb])):
                     for ta in range(self.model.body_tri_range[ba][0], self.model.body_tri_range[ba][1]):
-                        if boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.body_lo[bb], self.body_hi[bb]):
+                        if (self.model.tri_hidden[ta] == 0
+                                and boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.body_lo[bb], self.body_hi[bb])):
                             for tb in range(self.model.body_tri_range[bb][0], self.model.body_tri_range[bb][1]):
-                                if boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.tri_lo[tb], self.tri_hi[tb]):
+                                if (self.model.tri_hidden[tb] == 0
+                                        and boxes_overlap(self.tri_lo[ta], self.tri_hi[ta], self.tri_lo[tb], self.tri_hi[tb])):
                                     if n < capacity:
                                         c_tri[n] = ivec3(ta, tb, -1)
                                     n += 1

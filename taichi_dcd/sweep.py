@@ -285,8 +285,9 @@ PLOT_FLOOR = 1e-12
 
 def plot_pareto(rows: list[dict], path: Path) -> None:
     """Wall time per simulated second against maximum penetration depth, log-log, one
-    colour per scene (filled f64, hollow f32, × for runs that failed), each scene's Pareto
-    front as a line, and the contact test's 5 mm limit."""
+    colour per scene (filled f64, hollow f32, × for runs that errored, a black ring around
+    runs that ended but failed the contact test), each scene's Pareto front as a line, and the
+    contact test's 5 mm limit."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -309,6 +310,11 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
                            [max(r["max_penetration_depth"], PLOT_FLOOR) for r in pts],
                            s=28, facecolors=face, edgecolors=color, linewidths=1.2,
                            label=f"{scene} ({precision})")
+        judged_failed = [r for r in done if r.get("passed") is False]
+        if judged_failed:
+            ax.scatter([r["wall_time_per_sim_second"] for r in judged_failed],
+                       [max(r["max_penetration_depth"], PLOT_FLOOR) for r in judged_failed],
+                       s=70, facecolors="none", edgecolors="black", linewidths=0.8)
         broken = [r for r in mine if r not in done]
         if broken:
             ax.scatter([r["wall_time_per_sim_second"] for r in broken],
@@ -323,7 +329,8 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("wall time per simulated second (s)")
     ax.set_ylabel("maximum penetration depth over the run (m)")
-    ax.set_title("Speed against accuracy (lines: each scene's Pareto front; × failed runs)")
+    ax.set_title("Speed against accuracy (lines: each scene's Pareto front; black ring: failed the "
+                 "contact test; ×: run errored)", fontsize=10)
     ax.grid(True, which="major", alpha=0.3)
     if scenes:
         ax.legend(fontsize=7, loc="best")
