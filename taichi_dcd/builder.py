@@ -15,8 +15,8 @@ import numpy as np
 import trimesh
 
 from . import runtime
-from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
 from .hidden_faces import hidden_static_faces
+from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
 from .tunnelling import mesh_thickness
 
 DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
