@@ -1013,6 +1013,27 @@ class XPBDSolver:
                                             c_lambda_t)
 
     @ti.func
+    def predict(self, h: float, gravity: vec3, kick: float):
+        """Predict every rigid body and soft particle (Müller 2020, Alg. 2, lines 3-8)."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.predict_body(b, h, gravity, kick)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.predict_particle(i, h, gravity, kick)
+
+    @ti.func
+    def update_velocities(self, h: float):
+        """Velocities from the substep's motion (Müller 2020, Alg. 2, lines 12-16), then the soft
+        bodies' damping."""
+        for b in range(ti.static(self.model.n_bodies)):
+            self.update_body_velocity(b, h)
+        if ti.static(self.model.has_soft):
+            for i in range(ti.static(self.model.n_vertices)):
+                self.update_particle_velocity(i, h)
+            for b in range(ti.static(self.model.n_bodies)):
+                self.damp_soft_body(b, h)
+
+    @ti.func
     def substep_all_pairs(self, iterations: ti.i32, h: float, gravity: vec3, g_norm: float, kick: float,
                           depenetration: float, c_tri: ti.template(), c_bary_moved: ti.template(),
                           c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
@@ -1023,11 +1044,7 @@ class XPBDSolver:
         contact rows, whichever more, above the buffer's capacity if it overflowed; contact rows
         solved)."""
         capacity = c_tri.shape[0]
-        for b in range(ti.static(self.model.n_bodies)):
-            self.predict_body(b, h, gravity, kick)
-        if ti.static(self.model.has_soft):
-            for i in range(ti.static(self.model.n_vertices)):
-                self.predict_particle(i, h, gravity, kick)
+        self.predict(h, gravity, kick)
         for i in range(ti.static(self.model.n_vertices)):
             self.place_vertex(i)
         n = self.candidate_pairs(c_tri)
@@ -1040,13 +1057,7 @@ class XPBDSolver:
         n = ti.min(needed, capacity)
         self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                      c_lambda_t)
-        for b in range(ti.static(self.model.n_bodies)):
-            self.update_body_velocity(b, h)
-        if ti.static(self.model.has_soft):
-            for i in range(ti.static(self.model.n_vertices)):
-                self.update_particle_velocity(i, h)
-            for b in range(ti.static(self.model.n_bodies)):
-                self.damp_soft_body(b, h)
+        self.update_velocities(h)
         self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                               c_lambda_t, c_vn0, c_impulse_t)
         return wanted, n
@@ -1102,11 +1113,7 @@ class XPBDSolver:
     def _begin_substep(self, h: float, gravity: vec3, kick: float,
                        vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
         """Predict every body and particle in parallel and place the vertices for the grid."""
-        for b in range(ti.static(self.model.n_bodies)):
-            self.predict_body(b, h, gravity, kick)
-        if ti.static(self.model.has_soft):
-            for i in range(ti.static(self.model.n_vertices)):
-                self.predict_particle(i, h, gravity, kick)
+        self.predict(h, gravity, kick)
         for i in range(ti.static(self.model.n_vertices)):
             self.place_vertex(i)
             vertex_nd[i] = self.state.vertex_x[i]
@@ -1140,13 +1147,7 @@ class XPBDSolver:
                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                          c_lambda_t)
-        for b in range(ti.static(self.model.n_bodies)):
-            self.update_body_velocity(b, h)
-        if ti.static(self.model.has_soft):
-            for i in range(ti.static(self.model.n_vertices)):
-                self.update_particle_velocity(i, h)
-            for b in range(ti.static(self.model.n_bodies)):
-                self.damp_soft_body(b, h)
+        self.update_velocities(h)
         status = 0
         ti.loop_config(serialize=True)
         for _ in range(1):
