@@ -79,7 +79,8 @@ SCENES: dict[str, tuple[str, dict]] = {
     "soft-ball-on-spike": ("a soft ball (radius 0.5, 1,280 triangles) dropped from 1 m onto a spike's apex", {
         "sim": _sim(), "body": [_ground(-SPIKE_HEIGHT), _standing("spike"),
                                 {"name": "ball", "kind": "soft", "shape": "icosphere",
-                                 "params": {"radius": 0.5, "subdivisions": 3}, "position": [0.0, 1.5, 0.0]}]}),
+                                 "params": {"radius": 0.5, "subdivisions": 3}, "position": [0.0, 1.5, 0.0],
+                                 "compliance": 1e-4, "damping": 100.0}]}),
 }
 
 # Erleben's six tests, in his order; `taichi-dcd run all` runs these and the variants.

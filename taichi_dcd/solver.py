@@ -78,6 +78,9 @@ SOFT_BOX_MARGIN = 0.01
 # of the moved triangle, and with a soft body up to three of the other's.
 VERTEX_ROWS_PER_PAIR = 4
 VERTEX_ROWS_PER_PAIR_SOFT = 7
+# Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
+# against a face, an edge (two faces) or a corner (three).
+RESTING_ROWS_PER_SOFT_VERTEX = 3
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
 # _frames_all_pairs's status when the next frame needs more substeps than it was given (not begun),
@@ -165,6 +168,11 @@ class XPBDSolver:
             self.body_box_margin = scalar_field(m.n_bodies)
             runtime.fill(self.body_box_margin, box_margin.astype(real))
             self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
+            # One triangle holding each vertex: the moved triangle of a soft vertex's resting row.
+            self.vertex_tri = scalar_field(max(m.n_vertices, 1), ti.i32)
+            vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
+            vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
+            runtime.fill(self.vertex_tri, vertex_tri)
             # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
             self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
                                vec_field(m.n_bodies)]
@@ -178,6 +186,7 @@ class XPBDSolver:
                                               keep_pressed=m.has_soft, tri_hidden=m.tri_hidden_np)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
         self.thinnest = min(min(b.thickness for b in m.bodies), 1e30)
+        self.soft_vertex_count = int(sum(b.vertex_count for b in m.bodies if b.kind == "soft"))
         self.last_contact_count = 0
         # Set to a dict to have the grid path add up the wall seconds of its phases
         # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
@@ -567,6 +576,52 @@ class XPBDSolver:
                                                       c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                                                       c_lambda_t, c_vn0)
         return total
+
+    @ti.func
+    def add_resting_contacts(self, total: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                             c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                             c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """Rows for soft vertices resting on a face of a rigid or static body: in front of
+        the face's plane by at most SOFT_BOX_MARGIN of the soft body's thickness, projecting
+        onto the face, and not already a row. (Not behind it: beside a convex edge a vertex
+        outside the body is behind the other face's plane.) The unified test only sees pairs
+        that cross; a membrane held against a face by its volume constraint sits at depth 0
+        after its correction, gets no row in the next substep, is pressed in again, and
+        chatters (a ball draped on a spike: 8 mm/s). With a row the inequality C ≥ 0 holds
+        it in every sweep; a row in front of the face does nothing until it is crossed.
+        Rows go after row total-1 while they fit; returns the rows needed."""
+        rows = total
+        if ti.static(self.model.has_soft):
+            tol = ti.static(runtime.tolerance())
+            for i in range(ti.static(self.model.n_vertices)):
+                b_s = self.model.vertex_body[i]
+                if self.model.body_kind[b_s] == SOFT:
+                    v = self.state.vertex_x[i]
+                    skin = ti.static(SOFT_BOX_MARGIN) * self.body_thickness[b_s]
+                    t_m = self.vertex_tri[i]
+                    for b in range(ti.static(self.model.n_bodies)):
+                        if self.model.body_kind[b] != SOFT:
+                            for t in range(self.model.body_tri_range[b][0], self.model.body_tri_range[b][1]):
+                                if self.model.tri_hidden[t] == 0:
+                                    io = self.model.tri_indices[t]
+                                    q0, q1, q2 = (self.state.vertex_x[io[0]], self.state.vertex_x[io[1]],
+                                                  self.state.vertex_x[io[2]])
+                                    if (v >= ti.min(q0, q1, q2) - skin).all() and (v <= ti.max(q0, q1, q2) + skin).all():
+                                        cross = (q1 - q0).cross(q2 - q0)
+                                        if cross.norm() > 0.0:
+                                            normal = cross.normalized()
+                                            d = normal.dot(q0 - v)
+                                            if d <= 0.0 and d >= -skin:
+                                                w = barycentric(v + d * normal, q0, q1, q2)
+                                                if w.min() >= -tol and not self.is_duplicate(
+                                                        ti.min(rows, c_tri.shape[0]), t_m, t, normal, v, c_tri,
+                                                        c_bary_moved, c_normal):
+                                                    if rows < c_tri.shape[0]:
+                                                        self.write_contact(rows, t_m, t, d, normal, v, max_push, c_tri,
+                                                                           c_bary_moved, c_bary_other, c_normal,
+                                                                           c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                                                    rows += 1
+        return rows
 
     @ti.func
     def is_duplicate(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, point: vec3,
@@ -1053,6 +1108,8 @@ class XPBDSolver:
                                     c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
         needed = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                           c_budget, c_lambda_n, c_lambda_t, c_vn0)
+        needed = self.add_resting_contacts(needed, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                           c_budget, c_lambda_n, c_lambda_t, c_vn0)
         wanted = ti.max(wanted, needed)
         n = ti.min(needed, capacity)
         self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
@@ -1145,6 +1202,9 @@ class XPBDSolver:
             # The buffer holds VERTEX_ROWS_PER_PAIR(_SOFT) rows per pair (_step_grid): every vertex contact fits.
             n = self.add_vertex_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                          c_budget, c_lambda_n, c_lambda_t, c_vn0)
+            # RESTING_ROWS_PER_SOFT_VERTEX more per soft vertex; resting rows past the buffer are dropped.
+            n = ti.min(self.add_resting_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
+                                                 c_budget, c_lambda_n, c_lambda_t, c_vn0), c_tri.shape[0])
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                          c_lambda_t)
         self.update_velocities(h)
@@ -1237,8 +1297,9 @@ class XPBDSolver:
             start = time.perf_counter()
             pc = self.pipeline.contacts
             rows = VERTEX_ROWS_PER_PAIR_SOFT if self.model.has_soft else VERTEX_ROWS_PER_PAIR
-            if rows * pc.count > self.contacts.capacity:
-                self.contacts.grow(rows * pc.count)
+            wanted = rows * pc.count + RESTING_ROWS_PER_SOFT_VERTEX * self.soft_vertex_count
+            if wanted > self.contacts.capacity:
+                self.contacts.grow(wanted)
                 self.contact_growths += 1
             n, status = (int(v) for v in self._end_substep(
                 iterations, h, g_norm, self.bound, self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,

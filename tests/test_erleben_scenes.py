@@ -2,9 +2,9 @@
 --no-frames`): no NaN, settled within 5 s, penetration by the independent measure
 (metrics.py) at most 1e-4 m and 1e-9 m³ at the end and 5 mm over the run.
 
-Every rigid scene runs here. The ones that fail today are strict expected failures with
-the reason (the README's table has their figures): when one starts passing, its entry
-must go. The soft scene is left out: its penetration measure alone takes ~10 minutes."""
+Every built-in scene runs here, the soft one included. The ones that fail today are strict
+expected failures with the reason (the README's table has their figures): when one starts
+passing, its entry must go."""
 
 import json
 
@@ -16,13 +16,17 @@ from taichi_dcd.metrics import verdict
 
 RIGID_SCENES = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole", "spike-in-pit",
                 "spike-in-crack", "wedge-in-crack"]
+SOFT_SCENES = ["soft-ball-on-spike"]
 # Scenes that fail today, with why (strict: a scene that starts passing must leave the list).
-KNOWN_FAILING: dict[str, str] = {}
+KNOWN_FAILING: dict[str, str] = {
+    "soft-ball-on-spike": "hangs on the apex, but the spike's edges cut the draped membrane (overlap 1.7e-7 m³) "
+                          "and it is not still at 5 s (6e-3 m/s)",
+}
 
 
 @pytest.mark.parametrize("name", [
     pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILING[n])) if n in KNOWN_FAILING else n
-    for n in RIGID_SCENES])
+    for n in RIGID_SCENES + SOFT_SCENES])
 def test_scene_settles_without_penetrating(scene_run, name):
     metrics = scene_run(name)
     assert metrics["complete"] and not metrics["nan_detected"]
@@ -44,7 +48,7 @@ def test_run_command_reports_and_writes_the_run(f64, tmp_path, capsys):
 def test_list_names_every_builtin_scene(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
-    for name in RIGID_SCENES + ["soft-ball-on-spike"]:
+    for name in RIGID_SCENES + SOFT_SCENES:
         assert name in out
 
 
