@@ -78,8 +78,11 @@ SOFT_BOX_MARGIN = 0.01
 # of the moved triangle, and with a soft body up to three of the other's.
 VERTEX_ROWS_PER_PAIR = 4
 VERTEX_ROWS_PER_PAIR_SOFT = 7
+# Resting edge rows (add_resting_contacts) go along convex edges of rigid and static bodies whose
+# faces' normals differ by more than this.
+SHARP_EDGE_DEGREES = 30.0
 # Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
-# against a face, an edge (two faces) or a corner (three).
+# against a face, an edge (two faces) or a corner (three); edge rows share the room.
 RESTING_ROWS_PER_SOFT_VERTEX = 3
 # A body's or particle's coordinate beyond this many metres counts as an explosion.
 DEFAULT_BOUND = 1e6
@@ -106,6 +109,38 @@ def deepest_vertex_behind(p0: vec3, p1: vec3, p2: vec3, q0: vec3, q1: vec3, q2: 
             if barycentric(p + d * n_q, q0, q1, q2).min() >= -tol:
                 depth, point = d, p
     return depth, point
+
+
+def sharp_edge_bits(model: Model, vertex_x: np.ndarray) -> np.ndarray:
+    """(T,) int32: bit k set when edge k (vertex k to k+1) of a rigid or static triangle is a
+    convex edge whose two faces' normals differ by more than SHARP_EDGE_DEGREES, set on one
+    of its two faces only (the lower index). vertex_x (V, 3): any pose (rigid motion keeps it)."""
+    bits = np.zeros(max(model.n_tris, 1), np.int32)
+    tri = model.tri_indices_np
+    if model.n_tris == 0:
+        return bits
+    p = vertex_x[tri]
+    normals = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    lengths = np.linalg.norm(normals, axis=1)
+    normals = normals / np.where(lengths > 0.0, lengths, 1.0)[:, None]
+    rigid = model.body_kind_np[model.tri_body_np] != SOFT
+    owner = {}
+    for t in np.flatnonzero(rigid):
+        for k in range(3):
+            a, b = int(tri[t, k]), int(tri[t, (k + 1) % 3])
+            owner.setdefault((min(a, b), max(a, b)), []).append((t, k))
+    cos_sharp = np.cos(np.radians(SHARP_EDGE_DEGREES))
+    for faces in owner.values():
+        if len(faces) != 2:
+            continue
+        (t0, k0), (t1, _) = sorted(faces)
+        apart = [v for v in range(3) if tri[t1, v] not in tri[t0]]
+        if len(apart) != 1 or lengths[t0] == 0.0 or lengths[t1] == 0.0:
+            continue
+        convex = normals[t0].dot(p[t1, apart[0]] - p[t0, 0]) < 0.0
+        if convex and normals[t0].dot(normals[t1]) < cos_sharp:
+            bits[t0] |= 1 << k0
+    return bits
 
 
 @ti.data_oriented
@@ -139,6 +174,7 @@ class XPBDSolver:
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
+        sharp_bits = sharp_edge_bits(m, state.vertex_x.to_numpy()[: m.n_vertices]) if m.has_soft else None
         with runtime.field_block():  # one SNode tree for the solver's fields
             self.tri_lo = vec_field(m.n_tris)
             self.tri_hi = vec_field(m.n_tris)
@@ -173,6 +209,11 @@ class XPBDSolver:
             vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
             vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
             runtime.fill(self.vertex_tri, vertex_tri)
+            # Bit k of tri_sharp_edges[t]: edge k (vertex k to k+1) of a rigid or static face is
+            # a convex edge sharper than SHARP_EDGE_DEGREES that this face owns (resting edge rows).
+            self.tri_sharp_edges = scalar_field(max(m.n_tris, 1), ti.i32)
+            if m.has_soft:
+                runtime.fill(self.tri_sharp_edges, sharp_bits)
             # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
             self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
                                vec_field(m.n_bodies)]
@@ -589,7 +630,9 @@ class XPBDSolver:
         after its correction, gets no row in the next substep, is pressed in again, and
         chatters (a ball draped on a spike: 8 mm/s). With a row the inequality C ≥ 0 holds
         it in every sweep; a row in front of the face does nothing until it is crossed.
-        Rows go after row total-1 while they fit; returns the rows needed."""
+        Sharp convex edges of rigid and static bodies get rows against the soft triangles
+        over them likewise (edge_under_soft_triangle). Rows go after row total-1 while they
+        fit; returns the rows needed."""
         rows = total
         if ti.static(self.model.has_soft):
             tol = ti.static(runtime.tolerance())
@@ -621,6 +664,72 @@ class XPBDSolver:
                                                                            c_bary_moved, c_bary_other, c_normal,
                                                                            c_budget, c_lambda_n, c_lambda_t, c_vn0)
                                                     rows += 1
+            # The same for the sharp edges of rigid and static bodies under soft triangles: a
+            # membrane draped over an edge is cut by it between its vertices.
+            for t_s in range(ti.static(self.model.n_tris)):
+                b_s = self.model.tri_body[t_s]
+                if self.model.body_kind[b_s] == SOFT:
+                    skin = ti.static(SOFT_BOX_MARGIN) * self.body_thickness[b_s]
+                    im = self.model.tri_indices[t_s]
+                    p0, p1, p2 = self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]]
+                    lo, hi = ti.min(p0, p1, p2) - skin, ti.max(p0, p1, p2) + skin
+                    cross = (p1 - p0).cross(p2 - p0)
+                    if cross.norm() > 0.0:
+                        n_s = cross.normalized()
+                        for b in range(ti.static(self.model.n_bodies)):
+                            if self.model.body_kind[b] != SOFT:
+                                for t in range(self.model.body_tri_range[b][0], self.model.body_tri_range[b][1]):
+                                    if self.tri_sharp_edges[t] != 0 and self.model.tri_hidden[t] == 0:
+                                        rows = self.edge_under_soft_triangle(rows, t_s, t, p0, p1, p2, n_s, lo, hi,
+                                                                             skin, max_push, c_tri, c_bary_moved,
+                                                                             c_bary_other, c_normal, c_budget,
+                                                                             c_lambda_n, c_lambda_t, c_vn0)
+        return rows
+
+    @ti.func
+    def edge_under_soft_triangle(self, total: ti.i32, t_s: ti.i32, t: ti.i32, p0: vec3, p1: vec3, p2: vec3,
+                                 n_s: vec3, lo: vec3, hi: vec3, skin: float, max_push: float,
+                                 c_tri: ti.template(), c_bary_moved: ti.template(), c_bary_other: ti.template(),
+                                 c_normal: ti.template(), c_budget: ti.template(), c_lambda_n: ti.template(),
+                                 c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """Rows for the sharp edges of triangle t under soft triangle t_s = (p0, p1, p2), unit
+        normal n_s: the part of the edge whose projection along n_s falls in t_s (clipped
+        against t_s's three edge lines), at its end nearest to t_s's back, when that end is
+        within `skin` of t_s's plane in front or behind. The row moves t at that point along
+        n_s (C = n_s·(p_soft − q) ≥ 0: the edge stays outside the soft body), which pushes
+        only t_s when t is static."""
+        rows = total
+        io = self.model.tri_indices[t]
+        bits = self.tri_sharp_edges[t]
+        pts = [p0, p1, p2]
+        for k in ti.static(range(3)):
+            if (bits >> k) & 1:
+                qa, qb = self.state.vertex_x[io[k]], self.state.vertex_x[io[(k + 1) % 3]]
+                if (ti.max(qa, qb) >= lo).all() and (ti.min(qa, qb) <= hi).all():
+                    t0, t1 = 0.0, 1.0
+                    e = qb - qa
+                    for i in ti.static(range(3)):
+                        inward = n_s.cross(pts[(i + 1) % 3] - pts[i])
+                        g0 = inward.dot(qa - pts[i])
+                        dg = inward.dot(e)
+                        # Keep t with g0 + t·dg ≥ 0.
+                        if dg > 0.0:
+                            t0 = ti.max(t0, -g0 / dg)
+                        elif dg < 0.0:
+                            t1 = ti.min(t1, -g0 / dg)
+                        elif g0 < 0.0:
+                            t1 = -1.0
+                    if t0 <= t1:
+                        d0 = n_s.dot(qa + t0 * e - p0)
+                        d1 = n_s.dot(qa + t1 * e - p0)
+                        d = ti.min(d0, d1)
+                        q = qa + ti.select(d0 <= d1, t0, t1) * e
+                        if ti.abs(d) <= skin and not self.is_duplicate(ti.min(rows, c_tri.shape[0]), t, t_s, n_s, q,
+                                                                      c_tri, c_bary_moved, c_normal):
+                            if rows < c_tri.shape[0]:
+                                self.write_contact(rows, t, t_s, -d, n_s, q, max_push, c_tri, c_bary_moved,
+                                                   c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                            rows += 1
         return rows
 
     @ti.func

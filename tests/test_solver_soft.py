@@ -101,9 +101,11 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     bouncing off it or being skewered. Through the impact the independent measure finds
     the spike at most 5 mm inside the ball. At 1.5-1.6 s the ball's centre is within 2 cm
     of the spike's axis, below the apex (draped) and far above the ground, the spike at
-    most 1 mm inside it, and no ball vertex more than 3 µm behind a spike face: vertices
-    held against a face have a row in every substep (solver.add_resting_contacts; without
-    it they were pressed back in each substep and sat 10 µm deep here, 0.1 mm at 1.3 s)."""
+    most 0.1 mm inside it with at most 1e-9 m³ of overlap, and no ball vertex more than
+    3 µm behind a spike face. Vertices and sharp edges held against the membrane have rows
+    in every substep (solver.add_resting_contacts): without the vertex rows the vertices
+    were pressed back in each substep and sat 10 µm deep here (0.1 mm at 1.3 s); without
+    the edge rows the spike's edges cut 1.2e-8 m³ out of the ball here."""
     from taichi_dcd.builtin_scenes import builtin_scene
 
     scene = Scene(builtin_scene("soft-ball-on-spike"))
@@ -123,7 +125,8 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     centre = scene.body_positions()[ball]
     assert np.hypot(centre[0], centre[2]) <= 0.02, centre
     assert -1.0 < centre[1] < 0.0, centre
-    assert scene.penetration().depth <= 1e-3
+    pen = scene.penetration()
+    assert pen.depth <= 1e-4 and pen.volume <= 1e-9, pen
     assert max(vertex_depths) <= 3e-6, vertex_depths
 
 
@@ -171,3 +174,44 @@ def test_grid_path_lands_the_soft_cube_as_the_all_pairs_path_does(f64_scene):
         brute.step(20)
         np.testing.assert_allclose(grid.body_vertices("cube"), brute.body_vertices("cube"), atol=1e-9)
     assert grid.body_vertices("cube")[:, 1].min() >= -1e-6  # landed (at 0.1 s) and not sunk
+
+
+def test_sharp_edges_of_a_subdivided_box_are_its_twelve_edges(f64):
+    """solver.sharp_edge_bits on a static box with faces split once (48 triangles) beside a
+    soft ball: the flagged edges, each on one face only, are exactly the pieces of the box's
+    12 edges (both ends on the box's edge lines: two coordinates at ±half the size), 24
+    pieces; no edge inside a face and no edge of the soft ball is flagged."""
+    from taichi_dcd.solver import sharp_edge_bits
+
+    scene = Scene(scene_from_dict({"body": [
+        {"name": "block", "kind": "static", "shape": "box", "params": {"size": [2.0, 1.0, 4.0], "subdivisions": 1}},
+        {"name": "ball", "kind": "soft", "shape": "icosphere", "params": {"radius": 0.3, "subdivisions": 1},
+         "position": [0.0, 2.0, 0.0]}]}, name="edges"))
+    model = scene.model
+    x = scene.vertices()
+    bits = sharp_edge_bits(model, x)
+    flagged = set()
+    for t, b in enumerate(bits):
+        for k in range(3):
+            if b >> k & 1:
+                i, j = model.tri_indices_np[t, k], model.tri_indices_np[t, (k + 1) % 3]
+                edge = (min(i, j), max(i, j))
+                assert edge not in flagged
+                flagged.add(edge)
+    half = np.array([1.0, 0.5, 2.0])
+
+    def on_edge_line(p):
+        return np.sum(np.isclose(np.abs(p), half)) >= 2
+
+    block = model.bodies[0]
+    expected = set()
+    for f in block.faces:
+        for k in range(3):
+            i, j = f[k] + block.vertex_start, f[(k + 1) % 3] + block.vertex_start
+            a, b = x[i], x[j]
+            # Both ends on one edge line of the box: they share the two coordinates at ±half.
+            same = np.isclose(np.abs(a), half) & np.isclose(np.abs(b), half) & np.isclose(a, b)
+            if on_edge_line(a) and on_edge_line(b) and same.sum() >= 2:
+                expected.add((min(i, j), max(i, j)))
+    assert len(expected) == 24
+    assert flagged == expected
