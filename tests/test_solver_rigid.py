@@ -195,7 +195,7 @@ def test_many_frames_in_one_launch_move_the_bodies_as_frames_stepped_one_by_one(
 
 
 @pytest.mark.xfail(strict=True, reason="creeps off the edge at ~2.6 cm/s: Eq. 6 on the wedge's end faces and the "
-                                       "block's side face pushes it sideways every substep (README, open problems)")
+                                       "block's side face pushes it sideways every substep (README, Large scenes)")
 @pytest.mark.parametrize("broad_phase", ["brute", "grid"])
 def test_wedge_overhanging_a_block_edge_rests(f64_scene, broad_phase):
     """A wedge (scaled 0.3: base 0.3 x 0.6) standing on a block's top face with 0.057 m of its
