@@ -556,18 +556,18 @@ class XPBDSolver:
 
     @ti.func
     def vertex_over_face(self, total: ti.i32, t_moved: ti.i32, t_other: ti.i32, v: vec3, normal: vec3, q0: vec3,
-                         q1: vec3, q2: vec3, max_depth: float, max_push: float, c_tri: ti.template(),
-                         c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
-                         c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
-                         c_vn0: ti.template()) -> ti.i32:
+                         q1: vec3, q2: vec3, min_depth: float, max_depth: float, max_push: float,
+                         c_tri: ti.template(), c_bary_moved: ti.template(), c_bary_other: ti.template(),
+                         c_normal: ti.template(), c_budget: ti.template(), c_lambda_n: ti.template(),
+                         c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
         """Vertex v of t_moved as a contact against the face (q0, q1, q2) of t_other, plane
-        normal `normal`: when it lies behind the plane by 0 < d ≤ max_depth, projects onto the
-        face (edges included) and is not already a row. Writes row `total` if it fits;
-        returns the rows needed so far."""
+        normal `normal`: when it lies behind the plane by min_depth < d ≤ max_depth (negative:
+        in front), projects onto the face (edges included) and is not already a row. Writes
+        row `total` if it fits; returns the rows needed so far."""
         tol = ti.static(runtime.tolerance())
         rows = total
         d = normal.dot(q0 - v)
-        if d > 0.0 and d <= max_depth:
+        if d > min_depth and d <= max_depth:
             w = barycentric(v + d * normal, q0, q1, q2)
             if w.min() >= -tol and not self.is_duplicate(ti.min(rows, c_tri.shape[0]), t_moved, t_other, normal, v,
                                                          c_tri, c_bary_moved, c_normal):
@@ -599,7 +599,7 @@ class XPBDSolver:
             o0, o1, o2 = self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]]
             for k in ti.static(range(3)):
                 total = self.vertex_over_face(total, tri[0], tri[1], self.state.vertex_x[im[k]], normal, o0, o1, o2,
-                                              depth_main * (1.0 + tol), max_push, c_tri, c_bary_moved, c_bary_other,
+                                              0.0, depth_main * (1.0 + tol), max_push, c_tri, c_bary_moved, c_bary_other,
                                               c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
             # A soft triangle moved along a sharp feature's face normal can slide off the
             # feature sideways while the feature's vertex stays inside it: the membrane
@@ -613,7 +613,7 @@ class XPBDSolver:
                     n_m = cross_m.normalized()
                     for k in ti.static(range(3)):
                         total = self.vertex_over_face(total, tri[1], tri[0], self.state.vertex_x[io[k]], n_m, m0, m1,
-                                                      m2, 0.5 * self.body_thickness[b_m], max_push, c_tri,
+                                                      m2, 0.0, 0.5 * self.body_thickness[b_m], max_push, c_tri,
                                                       c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                                                       c_lambda_t, c_vn0)
         return total
@@ -635,7 +635,6 @@ class XPBDSolver:
         fit; returns the rows needed."""
         rows = total
         if ti.static(self.model.has_soft):
-            tol = ti.static(runtime.tolerance())
             for i in range(ti.static(self.model.n_vertices)):
                 b_s = self.model.vertex_body[i]
                 if self.model.body_kind[b_s] == SOFT:
@@ -652,18 +651,10 @@ class XPBDSolver:
                                     if (v >= ti.min(q0, q1, q2) - skin).all() and (v <= ti.max(q0, q1, q2) + skin).all():
                                         cross = (q1 - q0).cross(q2 - q0)
                                         if cross.norm() > 0.0:
-                                            normal = cross.normalized()
-                                            d = normal.dot(q0 - v)
-                                            if d <= 0.0 and d >= -skin:
-                                                w = barycentric(v + d * normal, q0, q1, q2)
-                                                if w.min() >= -tol and not self.is_duplicate(
-                                                        ti.min(rows, c_tri.shape[0]), t_m, t, normal, v, c_tri,
-                                                        c_bary_moved, c_normal):
-                                                    if rows < c_tri.shape[0]:
-                                                        self.write_contact(rows, t_m, t, d, normal, v, max_push, c_tri,
-                                                                           c_bary_moved, c_bary_other, c_normal,
-                                                                           c_budget, c_lambda_n, c_lambda_t, c_vn0)
-                                                    rows += 1
+                                            rows = self.vertex_over_face(rows, t_m, t, v, cross.normalized(), q0, q1,
+                                                                         q2, -skin, 0.0, max_push, c_tri,
+                                                                         c_bary_moved, c_bary_other, c_normal,
+                                                                         c_budget, c_lambda_n, c_lambda_t, c_vn0)
             # The same for the sharp edges of rigid and static bodies under soft triangles: a
             # membrane draped over an edge is cut by it between its vertices.
             for t_s in range(ti.static(self.model.n_tris)):
