@@ -78,22 +78,21 @@ def crossing_interval(p0: vec3, p1: vec3, p2: vec3, s: vec3, line: vec3):
 
 
 @ti.func
-def intervals_overlap(a0: vec3, a1: vec3, a2: vec3, n_a: vec3, s_a: vec3,
-                      b0: vec3, b1: vec3, b2: vec3, n_b: vec3, s_b: vec3, tol: float) -> bool:
+def intervals_overlap(a0: vec3, a1: vec3, a2: vec3, na_raw: vec3, s_a: vec3,
+                      b0: vec3, b1: vec3, b2: vec3, nb_raw: vec3, s_b: vec3) -> bool:
     """Möller's interval-overlap test for triangles that each straddle the other's plane.
 
-    s_a, s_b: each triangle's vertex distances to the other's plane. The intervals
-    where the triangles cross the other plane are compared along N_A × N_B, which
-    is not normalised (nothing divides by its length); planes within tol of
-    parallel never overlap.
+    na_raw, nb_raw: the triangles' unnormalised normals; s_a, s_b: each triangle's
+    vertex distances to the other's plane, in any positive scale (a crossing is a
+    ratio of two of them). The intervals where the triangles cross the other plane
+    are compared along na_raw × nb_raw, which is not normalised either: nothing
+    divides by a length, so no square root stands between the loads and the verdict.
+    The caller rejects (near-)parallel planes, for which the verdict means nothing.
     """
-    line = n_a.cross(n_b)
-    overlap = False
-    if line.norm_sqr() > tol * tol:
-        ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
-        tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
-        overlap = ta_max >= tb_min and tb_max >= ta_min
-    return overlap
+    line = na_raw.cross(nb_raw)
+    ta_min, ta_max = crossing_interval(a0, a1, a2, s_a, line)
+    tb_min, tb_max = crossing_interval(b0, b1, b2, s_b, line)
+    return ta_max >= tb_min and tb_max >= ta_min
 
 
 @ti.func
@@ -145,7 +144,9 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
 
     Branch-free: the outcomes are data-dependent coin flips, and mispredicted
     branches cost more than the arithmetic. An invalid candidate gets depth 0,
-    which never beats the floor of 0.
+    which never beats the floor of 0. One branch is kept: no point of P is deeper
+    than P's deepest vertex, so once a candidate is that deep (within `margin`) the
+    edge crossings, the costliest candidates, are not searched.
 
     Candidates of different kinds within `margin` (tol·L) of each other are a tie, won
     by P's vertex, then Q's vertex moved onto P, then an edge crossing: an edge of P
@@ -190,37 +191,37 @@ def deepest_candidate(p0: vec3, p1: vec3, p2: vec3, s_p: vec3,
     # other two line functions are >= 0 there. Images closer than tol to parallel
     # are skipped. The best crossing per edge is kept as a fraction (x/den, depth
     # times den) so that only one division per edge is needed.
-    depth_e = 0.0
-    point_e = vec3(0.0)
-    for i in ti.static(range(3)):
-        k = ti.static((i + 1) % 3)
-        e_p_sq = (img_p[k] - img_p[i]).norm_sqr()
-        ds = s_p[k] - s_p[i]
-        best_x = 0.0
-        best_den = 1.0
-        best_num = 0.0
-        for j in ti.static(range(3)):
-            j1 = ti.static((j + 1) % 3)
-            j2 = ti.static((j + 2) % 3)
-            den = g[i, j] - g[k, j]
-            flip = ti.select(den < 0.0, -1.0, 1.0)
-            den *= flip
-            num = g[i, j] * flip
-            crosses = ((den * den > tol * tol * e_p_sq * edge_q[j].norm_sqr())
-                       & (num >= 0.0) & (num <= den)
-                       & (g[i, j1] * den + num * (g[k, j1] - g[i, j1]) >= 0.0)
-                       & (g[i, j2] * den + num * (g[k, j2] - g[i, j2]) >= 0.0))
-            x = -(s_p[i] * den + num * ds)
-            better = crosses & (x * best_den > best_x * den)
-            best_x = ti.select(better, x, best_x)
-            best_den = ti.select(better, den, best_den)
-            best_num = ti.select(better, num, best_num)
-        u = best_num / best_den
-        depth_i = ti.select(best_x > 0.0, -(s_p[i] + u * ds), 0.0)
-        depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u * (pts_p[k] - pts_p[i]))
-
     depth, point = clearly_deeper(depth_v, point_v, depth_q, point_q, margin)
-    depth, point = clearly_deeper(depth, point, depth_e, point_e, margin)
+    if -s_p.min() > depth + margin:
+        depth_e = 0.0
+        point_e = vec3(0.0)
+        for i in ti.static(range(3)):
+            k = ti.static((i + 1) % 3)
+            e_p_sq = (img_p[k] - img_p[i]).norm_sqr()
+            ds = s_p[k] - s_p[i]
+            best_x = 0.0
+            best_den = 1.0
+            best_num = 0.0
+            for j in ti.static(range(3)):
+                j1 = ti.static((j + 1) % 3)
+                j2 = ti.static((j + 2) % 3)
+                den = g[i, j] - g[k, j]
+                flip = ti.select(den < 0.0, -1.0, 1.0)
+                den *= flip
+                num = g[i, j] * flip
+                crosses = ((den * den > tol * tol * e_p_sq * edge_q[j].norm_sqr())
+                           & (num >= 0.0) & (num <= den)
+                           & (g[i, j1] * den + num * (g[k, j1] - g[i, j1]) >= 0.0)
+                           & (g[i, j2] * den + num * (g[k, j2] - g[i, j2]) >= 0.0))
+                x = -(s_p[i] * den + num * ds)
+                better = crosses & (x * best_den > best_x * den)
+                best_x = ti.select(better, x, best_x)
+                best_den = ti.select(better, den, best_den)
+                best_num = ti.select(better, num, best_num)
+            u = best_num / best_den
+            depth_i = ti.select(best_x > 0.0, -(s_p[i] + u * ds), 0.0)
+            depth_e, point_e = deeper(depth_e, point_e, depth_i, pts_p[i] + u * (pts_p[k] - pts_p[i]))
+        depth, point = clearly_deeper(depth, point, depth_e, point_e, margin)
     return depth, point
 
 
@@ -240,43 +241,45 @@ def collide_triangle_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: 
     normal = vec3(0.0)
     side = -1
     point = vec3(0.0)
-    # Möller's rejection on raw (unnormalised) normals first: snapping near-zero
+    # Möller's test on raw (unnormalised) normals and distances: snapping near-zero
     # distances can only remove a straddle, never create one, so most pairs leave
-    # after one cross product and three dot products, before any tolerance work.
+    # after two cross products and six dot products, before any tolerance work, and
+    # only intersecting pairs pay for normalising.
     nb_raw = (b1 - b0).cross(b2 - b0)
+    na_raw = (a1 - a0).cross(a2 - a0)
     s_a = vec3(nb_raw.dot(a0 - b0), nb_raw.dot(a1 - b0), nb_raw.dot(a2 - b0))
-    if straddles(s_a):
-        na_raw = (a1 - a0).cross(a2 - a0)
-        s_b = vec3(na_raw.dot(b0 - a0), na_raw.dot(b1 - a0), na_raw.dot(b2 - a0))
-        if straddles(s_b):
-            edge_a = longest_edge_sq(a0, a1, a2)
-            edge_b = longest_edge_sq(b0, b1, b2)
-            len_sq = ti.max(edge_a, edge_b)
-            na_sq = na_raw.norm_sqr()
-            nb_sq = nb_raw.norm_sqr()
-            # The snap threshold tol·L on a unit-normal distance is tol²·L²·|n_raw|²
-            # on the squared raw one.
-            s_a = snap_to_zero(s_a, tol * tol * len_sq * nb_sq)
-            s_b = snap_to_zero(s_b, tol * tol * len_sq * na_sq)
-            if (has_area(na_raw, edge_a, tol) and has_area(nb_raw, edge_b, tol)
-                    and straddles(s_a) and straddles(s_b)):
-                inv_a = 1.0 / ti.sqrt(na_sq)
-                inv_b = 1.0 / ti.sqrt(nb_sq)
-                n_a = na_raw * inv_a
-                n_b = nb_raw * inv_b
+    s_b = vec3(na_raw.dot(b0 - a0), na_raw.dot(b1 - a0), na_raw.dot(b2 - a0))
+    if straddles(s_a) & straddles(s_b):
+        edge_a = longest_edge_sq(a0, a1, a2)
+        edge_b = longest_edge_sq(b0, b1, b2)
+        len_sq = ti.max(edge_a, edge_b)
+        na_sq = na_raw.norm_sqr()
+        nb_sq = nb_raw.norm_sqr()
+        # The snap threshold tol·L on a unit-normal distance is tol²·L²·|n_raw|²
+        # on the squared raw one.
+        s_a = snap_to_zero(s_a, tol * tol * len_sq * nb_sq)
+        s_b = snap_to_zero(s_b, tol * tol * len_sq * na_sq)
+        if (has_area(na_raw, edge_a, tol) & has_area(nb_raw, edge_b, tol) & straddles(s_a) & straddles(s_b)
+                & intervals_overlap(a0, a1, a2, na_raw, s_a, b0, b1, b2, nb_raw, s_b)):
+            inv_a = 1.0 / ti.sqrt(na_sq)
+            inv_b = 1.0 / ti.sqrt(nb_sq)
+            n_a = na_raw * inv_a
+            n_b = nb_raw * inv_b
+            # Parallel planes never intersect; tested on the unit normals, as the raw
+            # ones' |na_raw × nb_raw|² (~L⁸) leaves f32's range for millimetre triangles.
+            hit = n_a.cross(n_b).norm_sqr() > tol * tol
+            if hit:
                 s_a *= inv_b
                 s_b *= inv_a
-                if intervals_overlap(a0, a1, a2, n_a, s_a, b0, b1, b2, n_b, s_b, tol):
-                    hit = True
-                    cos_ab = n_a.dot(n_b)
-                    margin = tol * ti.sqrt(len_sq)
-                    depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol, margin)
-                    depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol, margin)
-                    side = moved_side(depth_a, depth_b, a0 + a1 + a2, b0 + b1 + b2, n_a, n_b, margin)
-                    if side == 0:
-                        depth, normal, point = depth_a, n_b, point_a
-                    elif side == 1:
-                        depth, normal, point = depth_b, n_a, point_b
+                cos_ab = n_a.dot(n_b)
+                margin = tol * ti.sqrt(len_sq)
+                depth_a, point_a = deepest_candidate(a0, a1, a2, s_a, b0, b1, b2, n_b, s_b, cos_ab, tol, margin)
+                depth_b, point_b = deepest_candidate(b0, b1, b2, s_b, a0, a1, a2, n_a, s_a, cos_ab, tol, margin)
+                side = moved_side(depth_a, depth_b, a0 + a1 + a2, b0 + b1 + b2, n_a, n_b, margin)
+                if side == 0:
+                    depth, normal, point = depth_a, n_b, point_a
+                elif side == 1:
+                    depth, normal, point = depth_b, n_a, point_b
     return hit, depth, normal, side, point
 
 
