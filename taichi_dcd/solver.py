@@ -81,6 +81,12 @@ VERTEX_ROWS_PER_PAIR_SOFT = 7
 # Resting edge rows (add_resting_contacts) go along convex edges of rigid and static bodies whose
 # faces' normals differ by more than this.
 SHARP_EDGE_DEGREES = 30.0
+# A contact row between rigid or static bodies whose point is nearer the plane of a convex
+# neighbour of the other triangle than this fraction of its depth leaves through that
+# neighbour instead (XPBDSolver.nearest_exit); edges whose faces' normals differ by less than
+# CONVEX_EDGE_DEGREES are not edges of the shape (a flat face split in two).
+NEAREST_EXIT_FRACTION = 0.01
+CONVEX_EDGE_DEGREES = 1.0
 # Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
 # against a face, an edge (two faces) or a corner (three); edge rows share the room.
 RESTING_ROWS_PER_SOFT_VERTEX = 3
@@ -111,14 +117,14 @@ def deepest_vertex_behind(p0: vec3, p1: vec3, p2: vec3, q0: vec3, q1: vec3, q2: 
     return depth, point
 
 
-def sharp_edge_bits(model: Model, vertex_x: np.ndarray) -> np.ndarray:
-    """(T,) int32: bit k set when edge k (vertex k to k+1) of a rigid or static triangle is a
-    convex edge whose two faces' normals differ by more than SHARP_EDGE_DEGREES, set on one
-    of its two faces only (the lower index). vertex_x (V, 3): any pose (rigid motion keeps it)."""
-    bits = np.zeros(max(model.n_tris, 1), np.int32)
+def convex_edges(model: Model, vertex_x: np.ndarray):
+    """Convex edges between two rigid or static triangles of one body: a list of
+    (t0, k0, t1, k1, cos) with t0 < t1, edge k0 of t0 (vertex k0 to k0+1) the same as edge
+    k1 of t1, cos the dot product of the faces' unit normals. vertex_x (V, 3): any pose
+    (rigid motion keeps it)."""
     tri = model.tri_indices_np
     if model.n_tris == 0:
-        return bits
+        return []
     p = vertex_x[tri]
     normals = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     lengths = np.linalg.norm(normals, axis=1)
@@ -129,18 +135,40 @@ def sharp_edge_bits(model: Model, vertex_x: np.ndarray) -> np.ndarray:
         for k in range(3):
             a, b = int(tri[t, k]), int(tri[t, (k + 1) % 3])
             owner.setdefault((min(a, b), max(a, b)), []).append((t, k))
-    cos_sharp = np.cos(np.radians(SHARP_EDGE_DEGREES))
+    edges = []
     for faces in owner.values():
         if len(faces) != 2:
             continue
-        (t0, k0), (t1, _) = sorted(faces)
+        (t0, k0), (t1, k1) = sorted(faces)
         apart = [v for v in range(3) if tri[t1, v] not in tri[t0]]
         if len(apart) != 1 or lengths[t0] == 0.0 or lengths[t1] == 0.0:
             continue
-        convex = normals[t0].dot(p[t1, apart[0]] - p[t0, 0]) < 0.0
-        if convex and normals[t0].dot(normals[t1]) < cos_sharp:
+        if normals[t0].dot(p[t1, apart[0]] - p[t0, 0]) < 0.0:
+            edges.append((int(t0), k0, int(t1), k1, float(normals[t0].dot(normals[t1]))))
+    return edges
+
+
+def sharp_edge_bits(model: Model, vertex_x: np.ndarray) -> np.ndarray:
+    """(T,) int32: bit k set when edge k (vertex k to k+1) of a rigid or static triangle is a
+    convex edge whose two faces' normals differ by more than SHARP_EDGE_DEGREES, set on one
+    of its two faces only (the lower index). vertex_x (V, 3): any pose."""
+    bits = np.zeros(max(model.n_tris, 1), np.int32)
+    cos_sharp = np.cos(np.radians(SHARP_EDGE_DEGREES))
+    for t0, k0, _, _, cos in convex_edges(model, vertex_x):
+        if cos < cos_sharp:
             bits[t0] |= 1 << k0
     return bits
+
+
+def convex_neighbours(model: Model, vertex_x: np.ndarray) -> np.ndarray:
+    """(max(T, 1), 3) int32: the triangle across edge k of each rigid or static triangle when
+    that edge is convex by more than CONVEX_EDGE_DEGREES, else -1. vertex_x (V, 3): any pose."""
+    nbr = np.full((max(model.n_tris, 1), 3), -1, np.int32)
+    cos_edge = np.cos(np.radians(CONVEX_EDGE_DEGREES))
+    for t0, k0, t1, k1, cos in convex_edges(model, vertex_x):
+        if cos < cos_edge:
+            nbr[t0, k0], nbr[t1, k1] = t1, t0
+    return nbr
 
 
 @ti.data_oriented
@@ -174,7 +202,9 @@ class XPBDSolver:
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
-        sharp_bits = sharp_edge_bits(m, state.vertex_x.to_numpy()[: m.n_vertices]) if m.has_soft else None
+        rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
+        sharp_bits = sharp_edge_bits(m, rest_x) if m.has_soft else None
+        nbr = convex_neighbours(m, rest_x)
         with runtime.field_block():  # one SNode tree for the solver's fields
             self.tri_lo = vec_field(m.n_tris)
             self.tri_hi = vec_field(m.n_tris)
@@ -214,6 +244,9 @@ class XPBDSolver:
             self.tri_sharp_edges = scalar_field(max(m.n_tris, 1), ti.i32)
             if m.has_soft:
                 runtime.fill(self.tri_sharp_edges, sharp_bits)
+            # The triangles across each face's convex edges, -1 elsewhere (nearest_exit).
+            self.tri_convex_nbr = vec_field(m.n_tris, 3, ti.i32)
+            runtime.fill(self.tri_convex_nbr, nbr)
             # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
             self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
                                vec_field(m.n_bodies)]
@@ -474,6 +507,10 @@ class XPBDSolver:
             side = ti.select(found, 0, -1)
         rows = n
         if side >= 0:
+            if not self.involves_soft(t_m, t_o):
+                if depth > max_push:
+                    t_o, depth, normal = self.nearest_exit(t_o, point, depth, normal)
+                depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
             duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
             if duplicate:
                 # The deepest point is a vertex another pair already made a row of. Another
@@ -489,6 +526,72 @@ class XPBDSolver:
                                    c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                 rows += 1
         return rows
+
+    @ti.func
+    def nearest_exit(self, t_other: ti.i32, point: vec3, depth: float, normal: vec3):
+        """The face a contact's point leaves the other body through: t_other's plane, where
+        the narrow phase measured `depth` along `normal`, or the plane of a convex neighbour
+        of t_other (tri_convex_nbr) behind which the point lies by less than
+        NEAREST_EXIT_FRACTION of that. Eq. 6 sees one pair: a wedge resting on a block's
+        edge sinks ~1e-5 m a substep into the top face, its end faces then cross the block's
+        side face, and the pair's depth is how far the wedge's base reaches in past the side
+        (0.24 m), not the 1e-5 m it is below the top; pushed along the side's normal every
+        substep, the wedge crept off the edge. Returns (triangle, depth, unit normal)."""
+        t_best, d_best, n_best = t_other, depth, normal
+        nbr = self.tri_convex_nbr[t_other]
+        for k in ti.static(range(3)):
+            t = nbr[k]
+            if t >= 0:
+                idx = self.model.tri_indices[t]
+                q0 = self.state.vertex_x[idx[0]]
+                raw = (self.state.vertex_x[idx[1]] - q0).cross(self.state.vertex_x[idx[2]] - q0)
+                length = raw.norm()
+                if length > 0.0:
+                    n_t = raw / length
+                    d = n_t.dot(q0 - point)
+                    if d > 0.0 and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
+                        t_best, d_best, n_best = t, d, n_t
+        return t_best, d_best, n_best
+
+    @ti.func
+    def convex_edge_at(self, t: ti.i32, x: vec3) -> vec3:
+        """The direction of the convex edge of triangle t (tri_convex_nbr) that x lies on
+        (within √eps in barycentric weight, not at a vertex); zero if none."""
+        idx = self.model.tri_indices[t]
+        q = [self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]]
+        bary = barycentric(x, q[0], q[1], q[2])
+        tol = ti.static(ti.sqrt(runtime.machine_eps()))
+        nbr = self.tri_convex_nbr[t]
+        edge = vec3(0.0)
+        for j in ti.static(range(3)):
+            k = ti.static((j + 1) % 3)  # the edge opposite vertex j runs from vertex k to k+1
+            k1 = ti.static((j + 2) % 3)
+            if ti.abs(bary[j]) <= tol and bary[k] > tol and bary[k1] > tol and nbr[k] >= 0:
+                edge = q[k1] - q[k]
+        return edge
+
+    @ti.func
+    def edge_edge_normal(self, t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3):
+        """A contact whose point is an edge crossing, on a convex edge of the moved
+        triangle, and whose target point·(depth·normal) is on a convex edge of the other, is
+        two edges of the shapes meeting: it is pushed along e_m × e_o (oriented as `normal`),
+        by the distance between the edge lines along it, depth·(N_ee·N). Eq. 6 gives one
+        face's normal instead: a wedge leaning on a block's top edge got rows along the block's
+        side and top normals from its end face, pushing it away from the block every substep,
+        and it slid down at 5.7 mm/s. Returns (depth, unit normal)."""
+        e_m = self.convex_edge_at(t_moved, point)
+        e_o = self.convex_edge_at(t_other, point + depth * normal)
+        n_ee = e_m.cross(e_o)
+        length = n_ee.norm()
+        d_out, n_out = depth, normal
+        if length > 1e-3 * e_m.norm() * e_o.norm() and length > 0.0:
+            n_ee = n_ee / length
+            cos = n_ee.dot(normal)
+            if cos < 0.0:
+                n_ee, cos = -n_ee, -cos
+            if cos > 0.0:
+                d_out, n_out = depth * cos, n_ee
+        return d_out, n_out
 
     @ti.func
     def next_vertex_over_face(self, n: ti.i32, t_moved: ti.i32, t_other: ti.i32, normal: vec3, max_depth: float,
