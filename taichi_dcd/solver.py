@@ -81,10 +81,12 @@ VERTEX_ROWS_PER_PAIR_SOFT = 7
 # Resting edge rows (add_resting_contacts) go along convex edges of rigid and static bodies whose
 # faces' normals differ by more than this.
 SHARP_EDGE_DEGREES = 30.0
-# A contact row between rigid or static bodies whose point is nearer the plane of a convex
-# neighbour of the other triangle than this fraction of its depth leaves through that
-# neighbour instead (XPBDSolver.nearest_exit); edges whose faces' normals differ by less than
-# CONVEX_EDGE_DEGREES are not edges of the shape (a flat face split in two).
+# A contact row between rigid or static bodies, deeper than one substep's allowance, whose
+# point is nearer the plane of a convex neighbour of the other triangle than this fraction of
+# its depth leaves through that neighbour instead (XPBDSolver.nearest_exit); rows within the
+# allowance keep their face: re-aimed too, a spike leaning on a block's edge, its points there
+# always nearly on the side plane, jittered at 1-3 mm/s (at 0.5 and at 0.01 alike); edges whose faces' normals differ by less than CONVEX_EDGE_DEGREES are not edges of the
+# shape (a flat face split in two).
 NEAREST_EXIT_FRACTION = 0.01
 CONVEX_EDGE_DEGREES = 1.0
 # Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
@@ -508,6 +510,7 @@ class XPBDSolver:
         rows = n
         if side >= 0:
             if not self.involves_soft(t_m, t_o):
+                # A row within the allowance is resting contact: its own face is the exit.
                 if depth > max_push:
                     t_o, depth, normal = self.nearest_exit(t_o, point, depth, normal)
                 depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
