@@ -540,19 +540,24 @@ class XPBDSolver:
         side face, and the pair's depth is how far the wedge's base reaches in past the side
         (0.24 m), not the 1e-5 m it is below the top; pushed along the side's normal every
         substep, the wedge crept off the edge. Returns (triangle, depth, unit normal)."""
+        tol = ti.static(runtime.tolerance())
         t_best, d_best, n_best = t_other, depth, normal
         nbr = self.tri_convex_nbr[t_other]
         for k in ti.static(range(3)):
             t = nbr[k]
             if t >= 0:
                 idx = self.model.tri_indices[t]
-                q0 = self.state.vertex_x[idx[0]]
-                raw = (self.state.vertex_x[idx[1]] - q0).cross(self.state.vertex_x[idx[2]] - q0)
+                q0, q1, q2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
+                raw = (q1 - q0).cross(q2 - q0)
                 length = raw.norm()
                 if length > 0.0:
                     n_t = raw / length
                     d = n_t.dot(q0 - point)
-                    if d > 0.0 and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
+                    # A point on the neighbour's plane up to rounding (coplanar faces: the
+                    # end faces of the parallel wedges) is not nearer it: which sign rounding
+                    # gives differs when the scene is scaled or moved.
+                    floor = tol * ti.sqrt(longest_edge_sq(q0, q1, q2))
+                    if d > floor and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
                         t_best, d_best, n_best = t, d, n_t
         return t_best, d_best, n_best
 
