@@ -83,10 +83,11 @@ VERTEX_ROWS_PER_PAIR_SOFT = 7
 SHARP_EDGE_DEGREES = 30.0
 # A contact row between rigid or static bodies, deeper than one substep's allowance, whose
 # point is nearer the plane of a convex neighbour of the other triangle than this fraction of
-# its depth leaves through that neighbour instead (XPBDSolver.nearest_exit); rows within the
+# its depth leaves through that neighbour instead (XPBDSolver.nearest_exit). Rows within the
 # allowance keep their face: re-aimed too, a spike leaning on a block's edge, its points there
-# always nearly on the side plane, jittered at 1-3 mm/s (at 0.5 and at 0.01 alike); edges whose faces' normals differ by less than CONVEX_EDGE_DEGREES are not edges of the
-# shape (a flat face split in two).
+# always nearly on the side plane, jittered at 1-3 mm/s (at 0.5 and at 0.01 alike). Edges whose
+# faces' normals differ by less than CONVEX_EDGE_DEGREES are not edges of the shape (a flat
+# face split in two).
 NEAREST_EXIT_FRACTION = 0.01
 CONVEX_EDGE_DEGREES = 1.0
 # Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
@@ -581,7 +582,7 @@ class XPBDSolver:
     @ti.func
     def edge_edge_normal(self, t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3):
         """A contact whose point is an edge crossing, on a convex edge of the moved
-        triangle, and whose target point·(depth·normal) is on a convex edge of the other, is
+        triangle, and whose target point + depth·normal is on a convex edge of the other, is
         two edges of the shapes meeting: it is pushed along e_m × e_o (oriented as `normal`),
         by the distance between the edge lines along it, depth·(N_ee·N). Eq. 6 gives one
         face's normal instead: a wedge leaning on a block's top edge got rows along the block's
@@ -592,7 +593,7 @@ class XPBDSolver:
         n_ee = e_m.cross(e_o)
         length = n_ee.norm()
         d_out, n_out = depth, normal
-        if length > 1e-3 * e_m.norm() * e_o.norm() and length > 0.0:
+        if length > 1e-3 * e_m.norm() * e_o.norm():  # false when either is no edge (zero)
             n_ee = n_ee / length
             cos = n_ee.dot(normal)
             if cos < 0.0:
