@@ -250,6 +250,17 @@ class XPBDSolver:
             # The triangles across each face's convex edges, -1 elsewhere (nearest_exit).
             self.tri_convex_nbr = vec_field(m.n_tris, 3, ti.i32)
             runtime.fill(self.tri_convex_nbr, nbr)
+            # The rows that pushed in the last substep (carry_rows), offered again in the next one.
+            self.carry_capacity = max(1024, m.n_tris)
+            self.carry_tri = vec_field(self.carry_capacity, 2, ti.i32)
+            self.carry_bary_moved = vec_field(self.carry_capacity)
+            self.carry_bary_other = vec_field(self.carry_capacity)
+            self.carry_normal = vec_field(self.carry_capacity)
+            self.carry_count = scalar_field(1, ti.i32)
+            # ... and their copy at the start of a frame (save_state), with the state's.
+            self.saved_carry = [vec_field(self.carry_capacity, 2, ti.i32), vec_field(self.carry_capacity),
+                                vec_field(self.carry_capacity), vec_field(self.carry_capacity),
+                                scalar_field(1, ti.i32)]
             # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
             self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
                                vec_field(m.n_bodies)]
@@ -864,6 +875,76 @@ class XPBDSolver:
         return found
 
     @ti.func
+    def keep_rows(self, n: ti.i32, slip_max: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                  c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template()):
+        """Remember the rigid and static rows of [0, n) that pushed in this substep (λ_n > 0)
+        and whose two anchors lie within slip_max (m) of each other across the normal, for
+        carried_rows in the next substep. A row carried before may be carried again: a
+        support the detection finds only every few substeps is then held in between; once its
+        anchors slide apart (the bodies slip or roll past it) it is let go."""
+        count = 0
+        for k in range(n):
+            tri = c_tri[k]
+            if c_lambda_n[k] > 0.0 and not self.involves_soft(tri[0], tri[1]) and count < self.carry_capacity:
+                normal = c_normal[k]
+                gap = (self.anchor_world(tri[1], c_bary_other[k], False)
+                       - self.anchor_world(tri[0], c_bary_moved[k], False))
+                if (gap - gap.dot(normal) * normal).norm() <= slip_max:
+                    self.carry_tri[count] = ivec2(tri[0], tri[1])
+                    self.carry_bary_moved[count] = c_bary_moved[k]
+                    self.carry_bary_other[count] = c_bary_other[k]
+                    self.carry_normal[count] = normal
+                    count += 1
+        self.carry_count[0] = count
+
+    @ti.func
+    def has_pair_row(self, t_a: ti.i32, t_b: ti.i32, c_tri: ti.template()) -> bool:
+        """Whether a row of this substep already ties triangles t_a and t_b (either moved)."""
+        found = False
+        for r in ti.static(range(2)):
+            t_m, t_o = (t_a, t_b) if r == 0 else (t_b, t_a)
+            j = self.body_last_row[self.model.tri_body[t_m]]
+            while j >= 0 and not found:
+                tri = c_tri[j]
+                found = tri[0] == t_m and tri[1] == t_o
+                j = tri[2]
+        return found
+
+    @ti.func
+    def carried_rows(self, total: ti.i32, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                     c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                     c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> ti.i32:
+        """The rows keep_rows remembered from the last substep whose triangle pair has no row
+        now, on the same anchors and normal. A body between two supports (a spike lying
+        along a groove, on both rims) is pushed off one, into the other, within one
+        projection; without the other's row, which detection made before the push, it ends
+        the substep inside that one and the next substep pushes it back, a cycle that never
+        comes to rest. Such a row holds C = N·(p_other − p_moved) ≥ 0 and does nothing
+        unless it is crossed. Rows go after row total-1 while they fit; returns the row count."""
+        rows = total
+        for j in range(self.carry_count[0]):
+            pair = self.carry_tri[j]
+            if rows < c_tri.shape[0] and not self.has_pair_row(pair[0], pair[1], c_tri):
+                bm, bo, normal = self.carry_bary_moved[j], self.carry_bary_other[j], self.carry_normal[j]
+                p_m = self.anchor_world(pair[0], bm, False)
+                p_o = self.anchor_world(pair[1], bo, False)
+                body_m = self.model.tri_body[pair[0]]
+                c_tri[rows] = ivec3(pair[0], pair[1], self.body_last_row[body_m])
+                self.body_last_row[body_m] = rows
+                c_bary_moved[rows] = bm
+                c_bary_other[rows] = bo
+                c_normal[rows] = normal
+                approach = normal.dot((p_o - self.anchor_world(pair[1], bo, True))
+                                      - (p_m - self.anchor_world(pair[0], bm, True)))
+                c_budget[rows] = ti.max(approach, 0.0) + max_push
+                c_lambda_n[rows] = 0.0
+                c_lambda_t[rows] = vec3(0.0)
+                c_vn0[rows] = (self.anchor_velocity(pair[0], bm, p_m)
+                               - self.anchor_velocity(pair[1], bo, p_o)).dot(normal)
+                rows += 1
+        return rows
+
+    @ti.func
     def forget_rows(self):
         """Start a substep's contact rows: no body has a row yet."""
         for b in range(ti.static(self.model.n_bodies)):
@@ -1137,7 +1218,13 @@ class XPBDSolver:
     # ---------------------------------------------------------------- kernels
     @ti.func
     def save_state(self):
-        """Copy the state to the frame's snapshot."""
+        """Copy the state and the carried rows to the frame's snapshot."""
+        self.saved_carry[4][0] = self.carry_count[0]
+        for k in range(self.carry_count[0]):
+            self.saved_carry[0][k] = self.carry_tri[k]
+            self.saved_carry[1][k] = self.carry_bary_moved[k]
+            self.saved_carry[2][k] = self.carry_bary_other[k]
+            self.saved_carry[3][k] = self.carry_normal[k]
         for b in range(ti.static(self.model.n_bodies)):
             self.saved_body[0][b] = self.state.body_x[b]
             self.saved_body[1][b] = self.state.body_q[b]
@@ -1242,6 +1329,12 @@ class XPBDSolver:
     @ti.func
     def restore_state(self):
         """Return to the frame's snapshot (serial)."""
+        self.carry_count[0] = self.saved_carry[4][0]
+        for k in range(self.carry_count[0]):
+            self.carry_tri[k] = self.saved_carry[0][k]
+            self.carry_bary_moved[k] = self.saved_carry[1][k]
+            self.carry_bary_other[k] = self.saved_carry[2][k]
+            self.carry_normal[k] = self.saved_carry[3][k]
         for b in range(ti.static(self.model.n_bodies)):
             self.state.body_x[b] = self.saved_body[0][b]
             self.state.body_q[b] = self.saved_body[1][b]
@@ -1324,11 +1417,14 @@ class XPBDSolver:
                                            c_budget, c_lambda_n, c_lambda_t, c_vn0)
         wanted = ti.max(wanted, needed)
         n = ti.min(needed, capacity)
+        n = self.carried_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
+                              c_lambda_n, c_lambda_t, c_vn0)
         self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                      c_lambda_t)
         self.update_velocities(h)
         self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                               c_lambda_t, c_vn0, c_impulse_t)
+        self.keep_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n)
         return wanted, n
 
     @ti.kernel
@@ -1417,6 +1513,8 @@ class XPBDSolver:
             # RESTING_ROWS_PER_SOFT_VERTEX more per soft vertex; resting rows past the buffer are dropped.
             n = ti.min(self.add_resting_contacts(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal,
                                                  c_budget, c_lambda_n, c_lambda_t, c_vn0), c_tri.shape[0])
+            n = self.carried_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
+                                  c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                          c_lambda_t)
         self.update_velocities(h)
@@ -1425,6 +1523,7 @@ class XPBDSolver:
         for _ in range(1):
             self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
                                   c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
+            self.keep_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n)
             for i in range(ti.static(self.model.n_vertices)):
                 self.place_vertex(i)
             status = self.state_is_sane(bound)
