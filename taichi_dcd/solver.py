@@ -429,16 +429,8 @@ class XPBDSolver:
         bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
         target = point + depth * normal
         bary_o = barycentric(target, self.state.vertex_x[io[0]], self.state.vertex_x[io[1]], self.state.vertex_x[io[2]])
-        body_m = self.model.tri_body[t_moved]
-        c_tri[k] = ivec3(t_moved, t_other, self.body_last_row[body_m])
-        self.body_last_row[body_m] = k
-        c_bary_moved[k] = bary_m
-        c_bary_other[k] = bary_o
-        c_normal[k] = normal
-        # The anchors' approach along N during this substep: C grew by this much since its start.
-        approach = normal.dot((target - self.anchor_world(t_other, bary_o, True))
-                              - (point - self.anchor_world(t_moved, bary_m, True)))
-        c_budget[k] = ti.max(approach, 0.0) + max_push
+        approach = self.start_row(k, t_moved, t_other, bary_m, bary_o, normal, point, target, max_push, c_tri,
+                                  c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
         if self.involves_soft(t_moved, t_other):
             c_budget[k] = ti.max(depth - approach - max_push, 0.0)
         # A vertex of the moved triangle over the other's face is a plain vertex-face contact,
@@ -449,10 +441,31 @@ class XPBDSolver:
         at_vertex = bary_m.max() >= 1.0 - tol
         if not (at_vertex and bary_o.min() >= -tol) and not self.involves_soft(t_moved, t_other):
             c_budget[k] = ti.min(depth, c_budget[k])
+
+    @ti.func
+    def start_row(self, k: ti.i32, t_moved: ti.i32, t_other: ti.i32, bary_m: vec3, bary_o: vec3, normal: vec3,
+                  p_moved: vec3, p_other: vec3, max_push: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                  c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                  c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template()) -> float:
+        """Row k ties anchor bary_m on t_moved (now at p_moved) to anchor bary_o on t_other (now at
+        p_other) along the normal N: links it into the moved body's row chain, clears its
+        multipliers, keeps the anchors' normal velocity before projection, and gives it the
+        budget (m) max(approach, 0) + max_push. Returns the approach: how much
+        N·(p_other − p_moved) grew during this substep."""
+        body_m = self.model.tri_body[t_moved]
+        c_tri[k] = ivec3(t_moved, t_other, self.body_last_row[body_m])
+        self.body_last_row[body_m] = k
+        c_bary_moved[k] = bary_m
+        c_bary_other[k] = bary_o
+        c_normal[k] = normal
+        approach = normal.dot((p_other - self.anchor_world(t_other, bary_o, True))
+                              - (p_moved - self.anchor_world(t_moved, bary_m, True)))
+        c_budget[k] = ti.max(approach, 0.0) + max_push
         c_lambda_n[k] = 0.0
         c_lambda_t[k] = vec3(0.0)
-        c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, point)
-                    - self.anchor_velocity(t_other, bary_o, target)).dot(normal)
+        c_vn0[k] = (self.anchor_velocity(t_moved, bary_m, p_moved)
+                    - self.anchor_velocity(t_other, bary_o, p_other)).dot(normal)
+        return approach
 
     @ti.func
     def candidate_pairs(self, c_tri: ti.template()) -> ti.i32:
@@ -928,19 +941,8 @@ class XPBDSolver:
                 bm, bo, normal = self.carry_bary_moved[j], self.carry_bary_other[j], self.carry_normal[j]
                 p_m = self.anchor_world(pair[0], bm, False)
                 p_o = self.anchor_world(pair[1], bo, False)
-                body_m = self.model.tri_body[pair[0]]
-                c_tri[rows] = ivec3(pair[0], pair[1], self.body_last_row[body_m])
-                self.body_last_row[body_m] = rows
-                c_bary_moved[rows] = bm
-                c_bary_other[rows] = bo
-                c_normal[rows] = normal
-                approach = normal.dot((p_o - self.anchor_world(pair[1], bo, True))
-                                      - (p_m - self.anchor_world(pair[0], bm, True)))
-                c_budget[rows] = ti.max(approach, 0.0) + max_push
-                c_lambda_n[rows] = 0.0
-                c_lambda_t[rows] = vec3(0.0)
-                c_vn0[rows] = (self.anchor_velocity(pair[0], bm, p_m)
-                               - self.anchor_velocity(pair[1], bo, p_o)).dot(normal)
+                self.start_row(rows, pair[0], pair[1], bm, bo, normal, p_m, p_o, max_push, c_tri, c_bary_moved,
+                               c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
                 rows += 1
         return rows
 
