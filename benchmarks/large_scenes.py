@@ -12,6 +12,7 @@ the last) and at the end, with the overlap volume at the end.
 
 Usage: python benchmarks/large_scenes.py [SCENE ...] [--frames N] [--measure-every K]
                                          [--threads T] [--arch cpu|cuda]
+                                         [--substeps S] [--iterations I]
 """
 
 import argparse
@@ -34,7 +35,8 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux reports KiB
 
 
-def bench(name: str, frames: int | None, measure_every: int, arch: str, threads: int | None) -> dict:
+def bench(name: str, frames: int | None, measure_every: int, arch: str, threads: int | None,
+          substeps: int | None = None, iterations: int | None = None) -> dict:
     """One scene in this (fresh, spawned) process, so that its peak memory is its own."""
     from taichi_dcd.run import SettleClock
     from taichi_dcd.scene import Scene
@@ -42,6 +44,8 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
     taichi_dcd.init(arch=arch, precision="f64", cpu_threads=threads)
     config = builtin_scene(name)
     sim = config.sim
+    sim.substeps = substeps or sim.substeps
+    sim.iterations = iterations or sim.iterations
     frames = frames or sim.frames
     rss_before = peak_rss_mib()
     build_start = time.perf_counter()
@@ -96,12 +100,17 @@ def main() -> None:
     parser.add_argument("--measure-every", type=int, default=10, help="frames between penetration measures")
     parser.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
     parser.add_argument("--arch", default="cpu", choices=["cpu", "cuda"])
+    parser.add_argument("--substeps", type=int, default=None, help="substeps per frame (default: the scene's)")
+    parser.add_argument("--iterations", type=int, default=None, help="solver sweeps per substep (default: the scene's)")
     args = parser.parse_args()
     unknown = [s for s in args.scenes if s not in LARGE_SCENES]
     if unknown:
         parser.error(f"unknown large scene {unknown[0]!r} (known: {', '.join(LARGE_SCENES)})")
     print(machine_line())
-    print(f"arch {args.arch}, f64, threads {args.threads or 'all'}, default substeps and iterations, "
+    if any(v is not None and v < 1 for v in (args.substeps, args.iterations)):
+        parser.error("--substeps and --iterations must be positive")
+    setting = (f"substeps {args.substeps or 'default'}, iterations {args.iterations or 'default'}")
+    print(f"arch {args.arch}, f64, threads {args.threads or 'all'}, {setting}, "
           f"penetration measured every {args.measure_every} frames")
     head = (f"{'scene':21} {'tris':>6} {'bodies':>6} {'frames':>6} {'settled':>7} {'wall s/sim s':>12} "
             + " ".join(f"{p:>10}" for p in (*PHASES, "other"))
@@ -109,7 +118,8 @@ def main() -> None:
     rows = []
     for name in args.scenes:
         with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-            rows.append(pool.submit(bench, name, args.frames, args.measure_every, args.arch, args.threads).result())
+            rows.append(pool.submit(bench, name, args.frames, args.measure_every, args.arch, args.threads,
+                                     args.substeps, args.iterations).result())
     print(head)
     for r in rows:
         print(f"{r['name']:21} {r['tris']:>6} {r['bodies']:>6} {r['frames']:>6} {str(r['settled']):>7} "
