@@ -5,7 +5,8 @@
 Prints, per scene: triangles, frames, wall time per simulated second (kernel compilation,
 i.e. the first frame, not timed), the share of the stepping time spent predicting,
 in the broad phase, the narrow phase, projection (contacts + velocities) and the rest
-(Python per frame: the substep choice, reading state back), peak resident memory of the
+(Python per frame: the substep choice, reading state back), the setting (substeps x sweeps),
+peak resident memory of the
 process (and its size after Taichi's start, before the scene), the most substeps a frame took, and the penetration by the independent measure
 (metrics.py): deepest over the frames it was taken on (every --measure-every frames and
 the last) and at the end, with the overlap volume at the end.
@@ -86,7 +87,7 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
     phases = scene.solver.phase_seconds
     shares = {p: phases.get(p, 0.0) / step_wall for p in PHASES}
     shares["other"] = 1.0 - sum(shares.values())
-    return dict(name=name, tris=scene.model.n_tris, bodies=len(scene.model.bodies), frames=f + 1,
+    return dict(name=name, setting=f"{sim.substeps} x {sim.iterations}", tris=scene.model.n_tris, bodies=len(scene.model.bodies), frames=f + 1,
                 settled=settled, sim_time=scene.time, build_s=build,
                 per_sim_s=step_wall / max(sim.frame_dt * f, 1e-12), shares=shares,
                 peak_mib=peak_rss_mib(), rss_before=rss_before, most_substeps=scene.most_substeps,
@@ -112,7 +113,7 @@ def main() -> None:
     setting = (f"substeps {args.substeps or 'default'}, iterations {args.iterations or 'default'}")
     print(f"arch {args.arch}, f64, threads {args.threads or 'all'}, {setting}, "
           f"penetration measured every {args.measure_every} frames")
-    head = (f"{'scene':21} {'tris':>6} {'bodies':>6} {'frames':>6} {'settled':>7} {'wall s/sim s':>12} "
+    head = (f"{'scene':21} {'setting':>8} {'tris':>6} {'bodies':>6} {'frames':>6} {'settled':>7} {'wall s/sim s':>12} "
             + " ".join(f"{p:>10}" for p in (*PHASES, "other"))
             + f" {'init MiB':>8} {'peak MiB':>8} {'max sub':>7} {'max depth m':>11} {'end depth m':>11} {'end vol m3':>10}")
     rows = []
@@ -122,7 +123,7 @@ def main() -> None:
                                      args.substeps, args.iterations).result())
     print(head)
     for r in rows:
-        print(f"{r['name']:21} {r['tris']:>6} {r['bodies']:>6} {r['frames']:>6} {str(r['settled']):>7} "
+        print(f"{r['name']:21} {r['setting']:>8} {r['tris']:>6} {r['bodies']:>6} {r['frames']:>6} {str(r['settled']):>7} "
               f"{r['per_sim_s']:>12.1f} "
               + " ".join(f"{100 * r['shares'][p]:>9.1f}%" for p in (*PHASES, "other"))
               + f" {r['rss_before']:>8.0f} {r['peak_mib']:>8.0f} {r['most_substeps']:>7} {r['deepest']:>11.2e} {r['final_depth']:>11.2e}"
