@@ -2,14 +2,14 @@
 63,756 triangles) and `spike-in-crack-hires` (every body remeshed to >= 20k triangles,
 98,304 in all), run until settled (every vertex slower than 1e-3 m/s for 0.2 s) or 5 s.
 
-Prints, per scene: triangles, frames, wall time per simulated second (kernel compilation,
-i.e. the first frame, not timed), the share of the stepping time spent predicting,
-in the broad phase, the narrow phase, projection (contacts + velocities) and the rest
-(Python per frame: the substep choice, reading state back), the setting (substeps x sweeps),
-peak resident memory of the
-process (and its size after Taichi's start, before the scene), the most substeps a frame took, and the penetration by the independent measure
-(metrics.py): deepest over the frames it was taken on (every --measure-every frames and
-the last) and at the end, with the overlap volume at the end.
+Prints, per scene: its setting (substeps x sweeps), triangles, frames, wall time per
+simulated second (kernel compilation, i.e. the first frame, not timed), the share of the
+stepping time spent predicting, in the broad phase, the narrow phase, projection (contacts
++ velocities) and the rest (Python per frame: the substep choice, reading state back), peak
+resident memory of the process (and its size after Taichi's start, before the scene), the
+most substeps a frame took, and the penetration by the independent measure (metrics.py):
+deepest over the frames it was taken on (every --measure-every frames and the last) and at
+the end, with the overlap volume at the end.
 
 Usage: python benchmarks/large_scenes.py [SCENE ...] [--frames N] [--measure-every K]
                                          [--threads T] [--arch cpu|cuda]
@@ -87,7 +87,8 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
     phases = scene.solver.phase_seconds
     shares = {p: phases.get(p, 0.0) / step_wall for p in PHASES}
     shares["other"] = 1.0 - sum(shares.values())
-    return dict(name=name, setting=f"{sim.substeps} x {sim.iterations}", tris=scene.model.n_tris, bodies=len(scene.model.bodies), frames=f + 1,
+    return dict(name=name, setting=f"{sim.substeps} x {sim.iterations}", tris=scene.model.n_tris,
+                bodies=len(scene.model.bodies), frames=f + 1,
                 settled=settled, sim_time=scene.time, build_s=build,
                 per_sim_s=step_wall / max(sim.frame_dt * f, 1e-12), shares=shares,
                 peak_mib=peak_rss_mib(), rss_before=rss_before, most_substeps=scene.most_substeps,
@@ -107,10 +108,10 @@ def main() -> None:
     unknown = [s for s in args.scenes if s not in LARGE_SCENES]
     if unknown:
         parser.error(f"unknown large scene {unknown[0]!r} (known: {', '.join(LARGE_SCENES)})")
-    print(machine_line())
     if any(v is not None and v < 1 for v in (args.substeps, args.iterations)):
         parser.error("--substeps and --iterations must be positive")
-    setting = (f"substeps {args.substeps or 'default'}, iterations {args.iterations or 'default'}")
+    print(machine_line())
+    setting = f"substeps {args.substeps or 'default'}, iterations {args.iterations or 'default'}"
     print(f"arch {args.arch}, f64, threads {args.threads or 'all'}, {setting}, "
           f"penetration measured every {args.measure_every} frames")
     head = (f"{'scene':21} {'setting':>8} {'tris':>6} {'bodies':>6} {'frames':>6} {'settled':>7} {'wall s/sim s':>12} "
