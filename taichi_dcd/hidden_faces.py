@@ -54,18 +54,19 @@ def hidden_static_faces(meshes: list[tuple[np.ndarray, np.ndarray]], static: lis
     return masks
 
 
-def _unit_normals(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _unit_normals(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit normals (n, 3), whether each face has area, and twice each face's area."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     length = np.linalg.norm(n, axis=1)
     ok = length > 0.0
     n[ok] /= length[ok, None]
-    return n, ok
+    return n, ok, length
 
 
 def _covered_by(tris_a: np.ndarray, tris_b: np.ndarray, tol: float) -> np.ndarray:
     """(len(tris_a),) bool: faces of A whose sample points all lie on coplanar, opposite faces of B."""
-    n_a, ok_a = _unit_normals(tris_a)
-    n_b, ok_b = _unit_normals(tris_b)
+    n_a, ok_a, _ = _unit_normals(tris_a)
+    n_b, ok_b, double_area_b = _unit_normals(tris_b)
     samples = np.einsum("sk,tkd->tsd", _SAMPLE_WEIGHTS, tris_a)  # (A, S, 3)
     offset_b = np.einsum("jd,jd->j", n_b, tris_b[:, 0])
     # Only faces whose boxes come within reach: a sample inside B by the test below lies
@@ -73,11 +74,9 @@ def _covered_by(tris_a: np.ndarray, tris_b: np.ndarray, tol: float) -> np.ndarra
     # off it by tol plus what the normals' 0.1° leaves over A's size.
     lo_a, hi_a = tris_a.min(axis=1), tris_a.max(axis=1)
     size_a = float((hi_a - lo_a).max(initial=0.0))
-    longest_b_sq = np.max([np.einsum("jd,jd->j", e, e) for e in (tris_b[:, 1] - tris_b[:, 0], tris_b[:, 2] - tris_b[:, 1],
-                                                                  tris_b[:, 0] - tris_b[:, 2])], axis=0)
-    area_b = 0.5 * np.linalg.norm(np.cross(tris_b[:, 1] - tris_b[:, 0], tris_b[:, 2] - tris_b[:, 0]), axis=1)
+    longest_b_sq = ((np.roll(tris_b, -1, axis=1) - tris_b) ** 2).sum(axis=2).max(axis=1)  # (B,) m²
     with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.where(ok_b, tol * (1.0 + longest_b_sq / area_b), 0.0) + tol + 2e-3 * size_a
+        reach = np.where(ok_b, tol * (1.0 + 2.0 * longest_b_sq / double_area_b), 0.0) + tol + 2e-3 * size_a
     lo_b, hi_b = tris_b.min(axis=1) - reach[:, None], tris_b.max(axis=1) + reach[:, None]
     # A's faces a block at a time, in order along x so that a block is a thin slab, against
     # the faces of B whose boxes reach the block's: whole, the (A, B) matrices of a
