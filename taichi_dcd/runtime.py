@@ -13,6 +13,8 @@ from contextlib import contextmanager
 import numpy as np
 import taichi as ti
 
+from taichi_dcd import kernel_cache
+
 ARCHS = ("cpu", "cuda", "vulkan")
 PRECISIONS = ("f32", "f64")
 
@@ -36,6 +38,8 @@ def init(
     arch: "cpu", "cuda" or "vulkan". precision: "f32" or "f64", the float type of
     every kernel. debug: Taichi's bounds checking (slow; used by the tests).
     cpu_threads: limit the CPU backend's threads (1 makes runs repeatable).
+    offline_cache: keep compiled kernels on disk for later processes, in a folder this
+    process leases for itself (kernel_cache.leased_folder).
     Calling again with the same settings does nothing.
     """
     global _settings
@@ -69,6 +73,8 @@ def init(
     )
     if cpu_threads is not None:
         kwargs["cpu_max_num_threads"] = int(cpu_threads)
+    if offline_cache and (folder := kernel_cache.leased_folder()) is not None:
+        kwargs["offline_cache_file_path"] = folder
     ti.init(**kwargs)
     got = ti.lang.impl.current_cfg().arch
     if got != getattr(ti, arch):

@@ -1,0 +1,62 @@
+"""A folder of Taichi's offline kernel cache that no other running process writes to.
+
+Taichi 1.7 rewrites, when a program ends or resets, every cached kernel file the program
+used, truncating it first, and reads those files without a lock. Two processes sharing one
+cache folder (a sweep's runs, a test suite's workers) can therefore read a half-written
+kernel, and the reader crashes. Each process here leases one of several numbered folders
+with an exclusive file lock held until it exits: processes that run one after another share
+a warm folder, processes that run side by side never share one.
+"""
+
+from __future__ import annotations
+
+import os
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock; Taichi's own shared folder is used there
+    fcntl = None
+
+MAX_SLOTS = 64
+ENV_OVERRIDE = "TI_OFFLINE_CACHE_FILE_PATH"
+
+# The open lock file of the leased folder, kept for the life of the process: closing it
+# would release the lease.
+_lease: tuple[str, int] | None = None
+
+
+def cache_root() -> str:
+    """Where the numbered folders live: $XDG_CACHE_HOME (or ~/.cache)/taichi_dcd/kernels."""
+    home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(home, "taichi_dcd", "kernels")
+
+
+def leased_folder(root: str | None = None) -> str | None:
+    """The folder this process caches compiled kernels in, leased on the first call.
+
+    None leaves the folder to Taichi (its shared default): when the user chose a folder
+    themselves ($TI_OFFLINE_CACHE_FILE_PATH), when file locks are unavailable, when the
+    cache root cannot be written, or when running processes hold all MAX_SLOTS folders.
+    """
+    global _lease
+    if _lease is not None:
+        return _lease[0]
+    if os.environ.get(ENV_OVERRIDE) or fcntl is None:
+        return None
+    root = root or cache_root()
+    for slot in range(MAX_SLOTS):
+        folder = os.path.join(root, f"slot{slot:02d}")
+        try:
+            os.makedirs(folder, exist_ok=True)
+            fd = os.open(os.path.join(folder, "lease.lock"), os.O_CREAT | os.O_RDWR, 0o644)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        os.set_inheritable(fd, False)
+        _lease = (folder, fd)
+        return folder
+    return None
