@@ -10,6 +10,23 @@ import pytest
 import taichi_dcd
 
 
+@pytest.fixture(autouse=True, scope="session")
+def crashes_name_the_python_line(request):
+    """Importing Taichi replaces Python's fatal-signal handler with its own, whose report a
+    test worker's output capture swallows: a worker that crashed in CI left no word. Put
+    pytest's faulthandler (which writes past the capture) back in front of it."""
+    import faulthandler
+
+    import taichi  # noqa: F401  (installs Taichi's handlers, which stay chained behind)
+
+    try:
+        from _pytest.faulthandler import fault_handler_stderr_fd_key
+        fd = request.config.stash[fault_handler_stderr_fd_key]
+    except (ImportError, KeyError):
+        return
+    faulthandler.enable(file=fd, all_threads=True)
+
+
 @pytest.fixture
 def f64():
     taichi_dcd.init(arch="cpu", precision="f64", debug=True)
