@@ -891,14 +891,10 @@ class XPBDSolver:
     def keep_rows(self, n: ti.i32, slip_max: float, c_tri: ti.template(), c_bary_moved: ti.template(),
                   c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template()):
         """Remember the rigid and static rows of [0, n) that pushed in this substep (λ_n > 0)
-        and whose two anchors lie within slip_max (m) of each other across the normal and
-        along it, for carried_rows in the next substep. A row carried before may be carried
-        again: a support the detection finds only every few substeps is then held in between;
-        once its anchors slide apart (the bodies slip or roll past it) it is let go. One still
-        more than slip_max (a substep's depenetration) short of its plane is no resting
-        support: in the pile, a spike's tip resting on one face of a wedge's corner kept a row
-        against the next face's plane 1.8 cm behind it, which pushed at full budget every
-        substep against the true rows, and the pair crept for good."""
+        and whose two anchors lie within slip_max (m) of each other across the normal, for
+        carried_rows in the next substep. A row carried before may be carried again: a
+        support the detection finds only every few substeps is then held in between; once its
+        anchors slide apart (the bodies slip or roll past it) it is let go."""
         count = 0
         for k in range(n):
             tri = c_tri[k]
@@ -906,8 +902,7 @@ class XPBDSolver:
                 normal = c_normal[k]
                 gap = (self.anchor_world(tri[1], c_bary_other[k], False)
                        - self.anchor_world(tri[0], c_bary_moved[k], False))
-                across = gap - gap.dot(normal) * normal
-                if across.norm() <= slip_max and gap.dot(normal) <= slip_max:
+                if (gap - gap.dot(normal) * normal).norm() <= slip_max:
                     self.carry_tri[count] = ivec2(tri[0], tri[1])
                     self.carry_bary_moved[count] = c_bary_moved[k]
                     self.carry_bary_other[count] = c_bary_other[k]
