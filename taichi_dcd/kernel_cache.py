@@ -3,10 +3,11 @@
 Taichi 1.7 writes, when a program ends or resets, the file of every kernel it compiled,
 truncating any file of the same kernel first, and reads those files without a lock. Two
 processes sharing one cache folder (a sweep's runs, a test suite's workers) that compile the
-same kernels can therefore read a half-written one; a test worker crashed in CI that way, as
-far as could be told. Each process here leases one of several numbered folders with an
-exclusive file lock held until it exits: processes that run one after another share a warm
-folder, processes that run side by side never share one.
+same kernels can therefore read a half-written one (the first suspect for a CI test
+worker's death, which later happened once with separate folders too). Each process here
+leases one of several numbered folders with an exclusive file lock held until it exits:
+processes that run one after another share a warm folder, processes that run side by side
+never share one.
 """
 
 from __future__ import annotations

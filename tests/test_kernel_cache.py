@@ -1,10 +1,9 @@
 """Each running process caches compiled kernels in a folder of its own (kernel_cache).
 
 Taichi rewrites the files of the kernels a program compiled when it ends, and reads them
-without a lock, so processes sharing a folder can read half-written kernels (the likeliest
-cause of a test worker's crash in CI); these tests check that
-processes running side by side never share a folder, that processes running one after
-another do (so later runs start warm), and that Taichi really writes there."""
+without a lock, so processes sharing a folder can read half-written kernels. These tests
+check that processes running side by side never share a folder, that processes running one
+after another do (so later runs start warm), and that Taichi really writes there."""
 
 import os
 import subprocess
