@@ -84,6 +84,15 @@ def init(
     _settings = wanted
 
 
+def reset() -> None:
+    """Drop the running Taichi program (its fields and compiled kernels); the next call
+    that needs Taichi starts it anew. Fields and solvers made before are unusable after."""
+    global _settings
+    if _settings is not None:
+        ti.reset()
+        _settings = None
+
+
 # While a field_block is open: its FieldsBuilder and the fills waiting for finalize.
 _block: tuple | None = None
 
