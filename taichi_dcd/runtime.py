@@ -53,8 +53,7 @@ def init(
                   cpu_threads=cpu_threads, offline_cache=bool(offline_cache))
     if _settings == wanted:
         return
-    if _settings is not None:
-        ti.reset()
+    reset()
     kwargs = dict(
         arch=getattr(ti, arch),
         default_fp=ti.f64 if precision == "f64" else ti.f32,

@@ -82,9 +82,10 @@ def test_the_frames_own_substep_check_agrees_with_the_numpy_choice():
     a random wobble of the ball's particles), the frame runs exactly when numpy would keep
     the configured substeps, and leaves the state untouched when it would not.
 
-    Run in a fresh process: in three of about eight CI-like runs the test worker died here
-    without a word after a few hundred earlier tests (never when run alone); a process of
-    its own keeps that from ending the suite and shows whatever it prints if it dies."""
+    Run in a fresh process: in three of about eight full runs the test worker died here
+    without a word after a few hundred earlier tests (never when run alone; README, Tests);
+    a process of its own keeps that from ending the suite and shows whatever it prints if it
+    dies."""
     out = subprocess.run([sys.executable, "-X", "faulthandler", __file__, "substep-check"], capture_output=True,
                          text=True, timeout=900)
     assert out.returncode == 0, f"exit status {out.returncode}\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
@@ -95,9 +96,9 @@ def substep_check_trials():
     """The body of the test above, in debug mode."""
     import taichi_dcd
     from taichi_dcd.config import scene_from_dict
+    from taichi_dcd.scene import Scene
 
     taichi_dcd.init(arch="cpu", precision="f64", debug=True)
-    from taichi_dcd.scene import Scene
 
     scene = Scene(scene_from_dict({"sim": {"gravity": [0.0, -9.8, 0.0]}, "body": [
         {"name": "ground", "kind": "static", "shape": "ground"},
