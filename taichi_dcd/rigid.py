@@ -82,6 +82,28 @@ def generalized_inv_mass(inv_mass: float, q: vec4, inv_inertia_body: mat3, r: ve
 
 
 @ti.func
+def quat_matrix(q: vec4) -> mat3:
+    """R(q) as a 3×3 matrix (its columns are the rotated axes)."""
+    rot = mat3(0.0)
+    for i in ti.static(range(3)):
+        axis = vec3(0.0)
+        axis[i] = 1.0
+        column = quat_rotate(q, axis)
+        for j in ti.static(range(3)):
+            rot[j, i] = column[j]
+    return rot
+
+
+@ti.func
+def inv_mass_matrix_world(inv_mass: float, inv_inertia_world: mat3, r: vec3) -> mat3:
+    """K = I/m − [r]× I_w⁻¹ [r]×: how far a body's point at offset r from its centre of mass
+    moves per unit positional impulse there, in every direction (n·K·n is
+    `generalized_inv_mass` along n)."""
+    skew = mat3([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return inv_mass * ti.Matrix.identity(float, 3) - skew @ inv_inertia_world @ skew
+
+
+@ti.func
 def apply_positional_impulse(x: vec3, theta: vec3, q_start: vec4, inv_mass: float, inv_inertia_body: mat3,
                              r_start: vec3, p: vec3):
     """Pose after a positional impulse p (kg·m) at offset r_start from the centre of mass
