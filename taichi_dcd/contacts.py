@@ -98,7 +98,8 @@ class ContactConstraints(_GrowableBuffer):
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s);
     `block_*` the linearisation of a row against a static body (solver.solve_static_blocks):
-    its lever from the body's centre (m), tangential slip (m), gap (m) and 3×3 inverse mass.
+    its lever from the body's centre (m), tangential slip (m), gap (m) and 3×3 inverse mass;
+    `block_rows` the indices of those rows.
     """
 
     def _allocate(self, capacity: int) -> None:
@@ -117,9 +118,10 @@ class ContactConstraints(_GrowableBuffer):
         self.block_slip = ti.ndarray(vec3, shape=capacity)
         self.block_gap = ti.ndarray(real, shape=capacity)
         self.block_k = ti.ndarray(ti.types.matrix(3, 3, real), shape=capacity)
+        self.block_rows = ti.ndarray(ti.i32, shape=capacity)
 
     def arrays(self) -> tuple:
         """The ndarrays in the order the solver's kernels take them."""
         return (self.tri, self.bary_moved, self.bary_other, self.normal, self.budget,
                 self.lambda_n, self.lambda_t, self.vn0, self.impulse_t,
-                self.block_lever, self.block_slip, self.block_gap, self.block_k)
+                self.block_lever, self.block_slip, self.block_gap, self.block_k, self.block_rows)

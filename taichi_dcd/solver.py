@@ -1363,7 +1363,8 @@ class XPBDSolver:
     def project(self, n_contacts: ti.i32, iterations: ti.i32, h: float, c_tri: ti.template(),
                 c_bary_moved: ti.template(), c_bary_other: ti.template(), c_normal: ti.template(),
                 c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
-                b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template()):
+                b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(),
+                b_rows: ti.template()):
         """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial
         loop); each sweep ends with every rigid body's rows against static bodies solved as one
         block (solve_static_blocks)."""
@@ -1389,7 +1390,7 @@ class XPBDSolver:
                     self.solve_contact_friction(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                                                 c_lambda_t)
             self.solve_static_blocks(n_contacts, it, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
-                                     c_lambda_n, c_lambda_t, b_lever, b_slip, b_gap, b_k)
+                                     c_lambda_n, c_lambda_t, b_lever, b_slip, b_gap, b_k, b_rows)
 
     @ti.func
     def block_body(self, k: ti.i32, c_tri: ti.template()) -> ti.i32:
@@ -1409,11 +1410,12 @@ class XPBDSolver:
     def solve_static_blocks(self, n_contacts: ti.i32, it: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
                             c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                             c_lambda_n: ti.template(), c_lambda_t: ti.template(), b_lever: ti.template(),
-                            b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template()):
+                            b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(), b_rows: ti.template()):
         """Each rigid body's rows against static bodies, solved together on the body's motion
         linearised at the sweep's start (a move Δx and a turn Δθ: an anchor at lever r moves
         by Δx + Δθ × r), then the body moved once: BLOCK_SWEEPS Gauss-Seidel sweeps of the
-        normals alone, then BLOCK_SWEEPS of normals and friction. Rows projected one at a time
+        normals alone, then BLOCK_SWEEPS of normals and friction, each phase ending early once
+        no row moves its anchor by more than tol·|r|. Rows projected one at a time
         on the real pose converge slowly where a body rests on several points: each push turns
         the body about its centre, which sinks the other points and slides them sideways for
         friction to undo (a spike lying on its face on the ground kept 1e-7 m of depth at 8
@@ -1445,15 +1447,24 @@ class XPBDSolver:
                 slip = (p_m - self.anchor_world(tri[0], bm, True)) - (p_o - self.anchor_world(tri[1], bo, True))
                 b_slip[k] = slip - slip.dot(n) * n
                 b_k[k] = inv_mass_matrix_world(self.model.body_inv_mass[b], self.block_inv_inertia[b], r)
+                b_rows[count] = k
                 count += 1
         if count > 0:
-            for inner in range(2 * BLOCK_SWEEPS):
-                for j in range(n_contacts):
-                    k = ti.select((it + inner) % 2 == 0, j, n_contacts - 1 - j)
-                    b = self.block_body(k, c_tri)
-                    if b >= 0:
-                        self.solve_block_row(k, b, inner >= BLOCK_SWEEPS, c_tri, c_normal, c_budget, c_lambda_n,
-                                             c_lambda_t, b_lever, b_slip, b_gap, b_k)
+            # A phase's sweeps stop early once no row moves its anchor by more than tol·|r|.
+            tol = ti.static(runtime.tolerance())
+            inner = 0
+            while inner < 2 * BLOCK_SWEEPS:
+                friction = inner >= BLOCK_SWEEPS
+                converged = True
+                for j in range(count):
+                    k = b_rows[ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
+                    moved = self.solve_block_row(k, self.block_body(k, c_tri), friction, c_tri, c_normal, c_budget,
+                                                 c_lambda_n, c_lambda_t, b_lever, b_slip, b_gap, b_k)
+                    if moved > tol * b_lever[k].norm():
+                        converged = False
+                inner += 1
+                if converged:
+                    inner = ti.select(friction, 2 * BLOCK_SWEEPS, ti.max(inner, BLOCK_SWEEPS))
             for b in range(n_b):
                 if self.model.body_kind[b] == RIGID:
                     dx, dtheta = self.block_dx[b], self.block_dtheta[b]
@@ -1465,14 +1476,16 @@ class XPBDSolver:
     @ti.func
     def solve_block_row(self, k: ti.i32, b: ti.i32, friction: bool, c_tri: ti.template(), c_normal: ti.template(),
                         c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
-                        b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template()):
+                        b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(),
+                        b_k: ti.template()) -> float:
         """Row k (rigid body b against a static body) projected on b's linearised motion, as
         solve_contact_normal and solve_contact_friction do on the real pose. With d the moved
         anchor's displacement relative to the other since the linearisation, the gap is
         g = g0 − N·d and the tangential slip s = s0 + d_t; an impulse P on the moved side adds
         K·P to d (K the 3×3 inverse mass at the anchor, rigid.inv_mass_matrix_world). The
         normal pushes c = min(g, budget) when c > 0; friction then cancels the slip left,
-        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27)."""
+        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27). Returns how far the row moved its anchor (m)."""
+        moved_by = 0.0
         tri = c_tri[k]
         sign = ti.select(self.model.tri_body[tri[0]] == b, 1.0, -1.0)
         r = b_lever[k]
@@ -1501,10 +1514,13 @@ class XPBDSolver:
             impulse = push * n - (new_t - old_t)
             c_lambda_n[k] = lam_n
             c_lambda_t[k] = new_t
-            c_budget[k] -= n.dot(k_mat @ impulse)
+            moved_anchor = k_mat @ impulse
+            c_budget[k] -= n.dot(moved_anchor)
+            moved_by = moved_anchor.norm()
             body_impulse = sign * impulse
             self.block_dx[b] += self.model.body_inv_mass[b] * body_impulse
             self.block_dtheta[b] += self.block_inv_inertia[b] @ r.cross(body_impulse)
+        return moved_by
 
     @ti.func
     def predict(self, h: float, gravity: vec3, kick: float):
@@ -1533,7 +1549,7 @@ class XPBDSolver:
                           c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                           c_lambda_n: ti.template(), c_lambda_t: ti.template(), c_vn0: ti.template(),
                           c_impulse_t: ti.template(), b_lever: ti.template(), b_slip: ti.template(),
-                          b_gap: ti.template(), b_k: ti.template()):
+                          b_gap: ti.template(), b_k: ti.template(), b_rows: ti.template()):
         """One substep with the all-pairs broad phase (Müller 2020, Alg. 2: predict, contacts,
         projection, velocities, velocity pass; serial). Returns (rows wanted: candidate pairs or
         contact rows, whichever more, above the buffer's capacity if it overflowed; contact rows
@@ -1555,7 +1571,7 @@ class XPBDSolver:
         n = self.carried_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
                               c_lambda_n, c_lambda_t, c_vn0)
         self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
-                     c_lambda_t, b_lever, b_slip, b_gap, b_k)
+                     c_lambda_t, b_lever, b_slip, b_gap, b_k, b_rows)
         self.update_velocities(h)
         self.solve_velocities(n, iterations, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                               c_lambda_t, c_vn0, c_impulse_t)
@@ -1574,7 +1590,8 @@ class XPBDSolver:
                           c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
                           b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                           b_gap: ti.types.ndarray(ndim=1),
-                          b_k: ti.types.ndarray(dtype=mat3, ndim=1)) -> ti.types.vector(4, ti.i32):
+                          b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                          b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(4, ti.i32):
         """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
         substep). Each frame starts from a snapshot of the state. With `check`, each frame
         first runs `substeps_suffice`; if they do not, the launch stops before that frame
@@ -1601,7 +1618,7 @@ class XPBDSolver:
                     wanted, n = self.substep_all_pairs(iterations, h, gravity, g_norm, kick, depenetration, c_tri,
                                                        c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
                                                        c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap,
-                                                       b_k)
+                                                       b_k, b_rows)
                     most = ti.max(most, wanted)
                 if most > capacity:
                     self.restore_state()
@@ -1637,7 +1654,8 @@ class XPBDSolver:
                      c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
                      b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                      b_gap: ti.types.ndarray(ndim=1),
-                     b_k: ti.types.ndarray(dtype=mat3, ndim=1)) -> ti.types.vector(2, ti.i32):
+                     b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                     b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
         """The grid's contacts into constraints, projection and velocities of one substep.
         Returns (contacts, state check)."""
         n = 0
@@ -1658,7 +1676,7 @@ class XPBDSolver:
             n = self.carried_rows(n, depenetration * h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
                                   c_lambda_n, c_lambda_t, c_vn0)
             self.project(n, iterations, h, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n,
-                         c_lambda_t, b_lever, b_slip, b_gap, b_k)
+                         c_lambda_t, b_lever, b_slip, b_gap, b_k, b_rows)
         self.update_velocities(h)
         status = 0
         ti.loop_config(serialize=True)
