@@ -125,6 +125,16 @@ def deepest_vertex_behind(p0: vec3, p1: vec3, p2: vec3, q0: vec3, q1: vec3, q2: 
     return depth, point
 
 
+@ti.func
+def friction_in_cone(lam_t: vec3, cap: float) -> vec3:
+    """An accumulated friction multiplier or impulse shortened to |λ_t| ≤ cap = μ·λ_n (the
+    Coulomb cone). Clamped rather than all-or-nothing: several contacts of one face share the
+    load unevenly, and dropping a contact's whole correction when its own share is exceeded
+    makes a box stick-slip down a gentle slope."""
+    length = lam_t.norm()
+    return ti.select(length > cap, lam_t * (cap / ti.select(length > 0.0, length, 1.0)), lam_t)
+
+
 def convex_edges(model: Model, vertex_x: np.ndarray):
     """Convex edges between two rigid or static triangles of one body: a list of
     (t0, k0, t1, k1, cos) with t0 < t1, edge k0 of t0 (vertex k0 to k0+1) the same as edge
@@ -229,7 +239,7 @@ class XPBDSolver:
             # every angular correction, added up so that the angular impulses add up exactly.
             self.body_theta = vec_field(m.n_bodies)
             # solve_static_blocks: each rigid body's move and turn (rad) in the current block
-            # solve, and its world inverse inertia at the substep's start.
+            # solve, and its world inverse inertia at the substep's start (set by project).
             self.block_dx = vec_field(m.n_bodies)
             self.block_dtheta = vec_field(m.n_bodies)
             self.block_inv_inertia = mat_field(m.n_bodies)
@@ -1028,6 +1038,12 @@ class XPBDSolver:
                     c_budget[k] -= c
 
     @ti.func
+    def pair_friction(self, t_a: ti.i32, t_b: ti.i32) -> float:
+        """μ of a contact between triangles t_a and t_b: the mean of their bodies' coefficients."""
+        return 0.5 * (self.model.body_friction[self.model.tri_body[t_a]]
+                      + self.model.body_friction[self.model.tri_body[t_b]])
+
+    @ti.func
     def solve_contact_friction(self, k: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
                                c_bary_other: ti.template(), c_normal: ti.template(), c_lambda_n: ti.template(),
                                c_lambda_t: ti.template()):
@@ -1049,17 +1065,10 @@ class XPBDSolver:
                 t = slip / length
                 f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
                 w = f_m * self.anchor_inv_mass(tri[0], bm, p_m, t) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, t)
-                mu = 0.5 * (self.model.body_friction[self.model.tri_body[tri[0]]]
-                            + self.model.body_friction[self.model.tri_body[tri[1]]])
                 if w > 0.0:
-                    # Clamped to the cone rather than all-or-nothing: several contacts of one
-                    # face share the load unevenly, and dropping a contact's whole correction
-                    # when its own share is exceeded makes a box stick-slip down a gentle slope.
                     old_t = c_lambda_t[k]
-                    new_t = old_t + (length / w) * t
-                    cap, new_len = mu * c_lambda_n[k], new_t.norm()
-                    if new_len > cap:
-                        new_t *= cap / new_len
+                    new_t = friction_in_cone(old_t + (length / w) * t,
+                                             self.pair_friction(tri[0], tri[1]) * c_lambda_n[k])
                     d = new_t - old_t
                     self.anchor_move(tri[0], bm, p_c, -f_m * d)
                     self.anchor_move(tri[1], bo, p_c, f_o * d)
@@ -1101,14 +1110,11 @@ class XPBDSolver:
                 t = vt / vt_len
                 w_t = f_m * self.anchor_inv_mass(tri[0], bm, p_m, t) + f_o * self.anchor_inv_mass(tri[1], bo, p_o, t)
                 if w_t > 0.0:
-                    mu = 0.5 * (self.model.body_friction[body_m] + self.model.body_friction[body_o])
+                    mu = self.pair_friction(tri[0], tri[1])
                     # The position pass already spent λ_t/h of the Coulomb bound μ·λ_n/h.
                     bound = ti.max(mu * c_lambda_n[k] - c_lambda_t[k].norm(), 0.0) / h
                     old = c_impulse_t[k]
-                    new = old - (vt_len / w_t) * t
-                    new_len = new.norm()
-                    if new_len > bound:
-                        new *= bound / new_len
+                    new = friction_in_cone(old - (vt_len / w_t) * t, bound)
                     c_impulse_t[k] = new
                     self.anchor_kick(tri[0], bm, p_c, f_m * (new - old))
                     self.anchor_kick(tri[1], bo, p_c, f_o * (old - new))
@@ -1369,6 +1375,12 @@ class XPBDSolver:
         loop); each sweep ends with every rigid body's rows against static bodies solved as one
         block (solve_static_blocks)."""
         self.compute_levels(n_contacts, c_tri)
+        # The blocks' turns act through the inverse inertia at the substep's start
+        # (apply_positional_impulse), the same for every sweep.
+        for b in range(ti.static(self.model.n_bodies)):
+            if self.model.body_kind[b] == RIGID:
+                rot = quat_matrix(self.state.body_q_prev[b])
+                self.block_inv_inertia[b] = rot @ self.model.body_inv_inertia[b] @ rot.transpose()
         if ti.static(self.model.has_soft):
             for e in range(ti.static(self.model.n_edges)):
                 self.edge_lambda[e] = 0.0
@@ -1429,9 +1441,6 @@ class XPBDSolver:
         for b in range(n_b):
             self.block_dx[b] = vec3(0.0)
             self.block_dtheta[b] = vec3(0.0)
-            if self.model.body_kind[b] == RIGID:
-                rot = quat_matrix(self.state.body_q_prev[b])
-                self.block_inv_inertia[b] = rot @ self.model.body_inv_inertia[b] @ rot.transpose()
         count = 0
         for k in range(n_contacts):
             b = self.block_body(k, c_tri)
@@ -1505,12 +1514,8 @@ class XPBDSolver:
             length = slip.norm()
             if friction and length > 0.0:
                 t = slip / length
-                mu = 0.5 * (self.model.body_friction[self.model.tri_body[tri[0]]]
-                            + self.model.body_friction[self.model.tri_body[tri[1]]])
-                new_t = old_t + (length / t.dot(k_mat @ t)) * t
-                cap, new_len = mu * lam_n, new_t.norm()
-                if new_len > cap:
-                    new_t *= cap / new_len
+                new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
+                                         self.pair_friction(tri[0], tri[1]) * lam_n)
             impulse = push * n - (new_t - old_t)
             c_lambda_n[k] = lam_n
             c_lambda_t[k] = new_t
