@@ -28,7 +28,8 @@ class BodySpec:
     kind "rigid" | "soft" | "static"; density kg/m³; velocity m/s; force N (constant,
     at the centre of mass); friction (Coulomb μ, static and dynamic); restitution in [0, 1];
     compliance m/N (soft bodies' edges); damping 1/s, the rate at which a soft body's
-    particles lose their velocity relative to the body's rigid motion (0: none)."""
+    particles lose their velocity relative to the body's rigid motion (0: none); drag 1/s,
+    the rate at which every point of a moving body loses its velocity (still air; 0: none)."""
 
     name: str
     vertices: np.ndarray
@@ -41,6 +42,7 @@ class BodySpec:
     restitution: float = 0.0
     compliance: float = DEFAULT_SOFT_COMPLIANCE
     damping: float = 0.0
+    drag: float = 0.0
     source: str | None = None  # the mesh file, named in error messages
 
 
@@ -146,6 +148,8 @@ class ModelBuilder:
             raise ValueError(f"body {spec.name!r}: compliance must be >= 0, got {spec.compliance}")
         if spec.kind == "soft" and not spec.damping >= 0.0:
             raise ValueError(f"body {spec.name!r}: damping must be >= 0, got {spec.damping}")
+        if not spec.drag >= 0.0:
+            raise ValueError(f"body {spec.name!r}: drag must be >= 0, got {spec.drag}")
         mesh, warnings = checked_mesh(spec.name, spec.vertices, spec.faces, spec.source)
         self.meshes.append(mesh)
         self.warnings += warnings
@@ -231,6 +235,7 @@ class ModelBuilder:
                 body_tri_range=_from(vec_field(n_b, 2, i32), tri_range),
                 body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
                 body_damping=_from(scalar_field(n_b), np.array([s.damping for s in self.specs], real)),
+                body_drag=_from(scalar_field(n_b), np.array([s.drag for s in self.specs], real)),
                 body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
                 vertex_body=_from(scalar_field(n_v, i32), np.concatenate(vertex_body)),
                 vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),

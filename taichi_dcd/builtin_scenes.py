@@ -84,7 +84,7 @@ SCENES: dict[str, tuple[str, dict]] = {
         "sim": {**_sim(), **SOFT_SETTINGS}, "body": [_ground(-SPIKE_HEIGHT), _standing("spike"),
                                 {"name": "ball", "kind": "soft", "shape": "icosphere",
                                  "params": {"radius": 0.5, "subdivisions": 3}, "position": [0.0, 1.5, 0.0],
-                                 "compliance": 1e-4, "damping": 100.0}]}),
+                                 "compliance": 1e-4, "damping": 70.0, "drag": 0.5}]}),
 }
 
 # Erleben's six tests, in his order; `taichi-dcd run all` runs these and the variants.

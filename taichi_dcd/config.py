@@ -78,6 +78,7 @@ class BodyConfig:
     restitution: float = 0.0
     compliance: float = 1e-7
     damping: float = 0.0
+    drag: float = 0.0
 
 
 @dataclass
@@ -95,7 +96,7 @@ _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "it
 _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg",
-              "damping": "nonneg"}
+              "damping": "nonneg", "drag": "nonneg"}
 _KINDS = ("rigid", "soft", "static")
 
 
@@ -197,7 +198,8 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
     """A copy of the scene with every length multiplied by `factor` and every time by
     √factor, so that under the same gravity the motion is the same motion, L times larger:
     positions and meshes ×L, velocities and frame_dt ×√L, forces ×L³ (masses grow as L³),
-    soft compliance ×L⁻² (the same strain under L³ times the load), length_scale ×L."""
+    soft compliance ×L⁻² (the same strain under L³ times the load), damping and drag rates
+    ×L^-1/2, length_scale ×L."""
     import copy
 
     if not (math.isfinite(factor) and factor > 0):
@@ -215,4 +217,6 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
         body.velocity = tuple(root * v for v in body.velocity)
         body.force = tuple(factor ** 3 * f for f in body.force)
         body.compliance /= factor ** 2
+        body.damping /= root
+        body.drag /= root
     return scaled

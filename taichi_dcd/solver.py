@@ -1219,6 +1219,22 @@ class XPBDSolver:
                 self.state.vertex_v[i] += k * (v_cm + omega.cross(r) - self.state.vertex_v[i])
 
     @ti.func
+    def apply_drag(self, b: ti.i32, h: float):
+        """Linear drag of still air: every point of body b loses the fraction 1 − exp(−drag·h)
+        of its velocity over the substep (dv/dt = −drag·v). For a rigid body that is v and ω
+        alike (the force −drag·m·v at the centre of mass and the torque −drag·I·ω)."""
+        rate = self.model.body_drag[b]
+        if rate > 0.0:
+            keep = ti.exp(-rate * h)
+            if self.model.body_kind[b] == RIGID:
+                self.state.body_v[b] *= keep
+                self.state.body_w[b] *= keep
+            elif self.model.body_kind[b] == SOFT:
+                lo, hi = self.model.body_vertex_range[b][0], self.model.body_vertex_range[b][1]
+                for i in range(lo, hi):
+                    self.state.vertex_v[i] *= keep
+
+    @ti.func
     def state_is_sane(self, bound: float) -> ti.i32:
         """-1 - (index of the first body) whose state is NaN or beyond `bound`, else 0."""
         bad = 0
@@ -1547,6 +1563,8 @@ class XPBDSolver:
                 self.update_particle_velocity(i, h)
             for b in range(ti.static(self.model.n_bodies)):
                 self.damp_soft_body(b, h)
+        for b in range(ti.static(self.model.n_bodies)):
+            self.apply_drag(b, h)
 
     @ti.func
     def substep_all_pairs(self, iterations: ti.i32, h: float, gravity: vec3, g_norm: float, kick: float,

@@ -19,10 +19,7 @@ RIGID_SCENES = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-
                 "spike-in-crack", "wedge-in-crack"]
 SOFT_SCENES = ["soft-ball-on-spike"]
 # Scenes that fail today, with why (strict: a scene that starts passing must leave the list).
-KNOWN_FAILING: dict[str, str] = {
-    "soft-ball-on-spike": "hangs on the apex within every depth limit, but still moves at 5 s "
-                          "(a swing about the apex decaying over seconds; README)",
-}
+KNOWN_FAILING: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("name", [

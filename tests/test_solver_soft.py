@@ -96,13 +96,14 @@ def depth_inside_convex(points: np.ndarray, mesh) -> np.ndarray:
 
 
 def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
-    """The soft-ball-on-spike scene (compliance 1e-4 m/N, damping 100/s; first contact at
+    """The soft-ball-on-spike scene (compliance 1e-4 m/N, damping 70/s, drag 0.5/s; first contact at
     0.45 s, 4.4 m/s): the ball dents around the apex and hangs on the spike instead of
     bouncing off it or being skewered. Through the impact the independent measure finds
     the spike at most 5 mm inside the ball. At 1.5-1.6 s the ball's centre is within 2 cm
     of the spike's axis, below the apex (draped) and far above the ground, the spike at
     most 0.1 mm inside it with at most 1e-9 m³ of overlap, and no ball vertex more than
-    3 µm behind a spike face. Vertices and sharp edges held against the membrane have rows
+    5 µm behind a spike face (seen: 3.7 µm; under 3 µm at the earlier damping of
+    100/s without drag). Vertices and sharp edges held against the membrane have rows
     in every substep (solver.add_resting_contacts): without the vertex rows the vertices
     were pressed back in each substep and sat 10 µm deep here (0.1 mm at 1.3 s); without
     the edge rows the spike's edges cut 1.2e-8 m³ out of the ball here."""
@@ -127,7 +128,7 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     assert -1.0 < centre[1] < 0.0, centre
     pen = scene.penetration()
     assert pen.depth <= 1e-4 and pen.volume <= 1e-9, pen
-    assert max(vertex_depths) <= 3e-6, vertex_depths
+    assert max(vertex_depths) <= 5e-6, vertex_depths
 
 
 def soft_cube_on_block(size: float, broad_phase: str = "auto") -> Scene:
