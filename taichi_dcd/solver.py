@@ -243,6 +243,9 @@ class XPBDSolver:
             self.block_dx = vec_field(m.n_bodies)
             self.block_dtheta = vec_field(m.n_bodies)
             self.block_inv_inertia = mat_field(m.n_bodies)
+            # Each body's rows in b_rows: [block_first, block_first + block_len).
+            self.block_first = scalar_field(m.n_bodies, ti.i32)
+            self.block_len = scalar_field(m.n_bodies, ti.i32)
             self.body_thickness = scalar_field(m.n_bodies)
             self.body_reach = scalar_field(m.n_bodies)  # farthest vertex from a rigid body's centre (m)
             # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
@@ -1442,8 +1445,8 @@ class XPBDSolver:
         """Each rigid body's rows against static bodies, solved together on the body's motion
         linearised at the sweep's start (a move Δx and a turn Δθ: an anchor at lever r moves
         by Δx + Δθ × r), then the body moved once: BLOCK_SWEEPS Gauss-Seidel sweeps of the
-        normals alone, then BLOCK_SWEEPS of normals and friction, each phase ending early once
-        no row moves its anchor by more than tol·|r|. Rows projected one at a time
+        normals alone, then BLOCK_SWEEPS of normals and friction, each body leaving a phase early
+        once no row of its moves its anchor by more than tol·|r| (sweep_block). Rows projected one at a time
         on the real pose converge slowly where a body rests on several points: each push turns
         the body about its centre, which sinks the other points and slides them sideways for
         friction to undo (a spike lying on its face on the ground kept 1e-7 m of depth at 8
@@ -1457,10 +1460,12 @@ class XPBDSolver:
         for b in range(n_b):
             self.block_dx[b] = vec3(0.0)
             self.block_dtheta[b] = vec3(0.0)
+            self.block_len[b] = 0
         count = 0
         for k in range(n_contacts):
             b = self.block_body(k, c_tri)
             if b >= 0:
+                self.block_len[b] += 1
                 tri = c_tri[k]
                 bm, bo = c_bary_moved[k], c_bary_other[k]
                 n = c_normal[k]
@@ -1472,24 +1477,26 @@ class XPBDSolver:
                 slip = (p_m - self.anchor_world(tri[0], bm, True)) - (p_o - self.anchor_world(tri[1], bo, True))
                 b_slip[k] = slip - slip.dot(n) * n
                 b_k[k] = inv_mass_matrix_world(self.model.body_inv_mass[b], self.block_inv_inertia[b], r)
-                b_rows[count] = k
                 count += 1
         if count > 0:
-            # A phase's sweeps stop early once no row moves its anchor by more than tol·|r|.
-            tol = ti.static(runtime.tolerance())
-            inner = 0
-            while inner < 2 * BLOCK_SWEEPS:
-                friction = inner >= BLOCK_SWEEPS
-                converged = True
-                for j in range(count):
-                    k = b_rows[ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
-                    moved = self.solve_block_row(k, self.block_body(k, c_tri), friction, c_tri, c_normal, c_budget,
-                                                 c_lambda_n, c_lambda_t, b_lever, b_slip, b_gap, b_k)
-                    if moved > tol * b_lever[k].norm():
-                        converged = False
-                inner += 1
-                if converged:
-                    inner = ti.select(friction, 2 * BLOCK_SWEEPS, ti.max(inner, BLOCK_SWEEPS))
+            # Each body's rows together, in row order (a counting sort by body): a block moves
+            # no other body, so each body sweeps its own rows, and leaves a phase once no row of
+            # its moves its anchor by more than tol·|r|. A body still landing does not keep
+            # the resting ones sweeping.
+            first = 0
+            for b in range(n_b):
+                self.block_first[b] = first
+                first += self.block_len[b]
+                self.block_len[b] = 0
+            for k in range(n_contacts):
+                b = self.block_body(k, c_tri)
+                if b >= 0:
+                    b_rows[self.block_first[b] + self.block_len[b]] = k
+                    self.block_len[b] += 1
+            for b in range(n_b):
+                if self.block_len[b] > 0:
+                    self.sweep_block(b, it, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t, b_lever, b_slip,
+                                     b_gap, b_k, b_rows)
             for b in range(n_b):
                 if self.model.body_kind[b] == RIGID:
                     dx, dtheta = self.block_dx[b], self.block_dtheta[b]
@@ -1497,6 +1504,30 @@ class XPBDSolver:
                         self.state.body_x[b] += dx
                         self.body_theta[b] += dtheta
                         self.state.body_q[b] = rotate_by(self.state.body_q_prev[b], self.body_theta[b])
+
+    @ti.func
+    def sweep_block(self, b: ti.i32, it: ti.i32, c_tri: ti.template(), c_normal: ti.template(),
+                    c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                    b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(),
+                    b_rows: ti.template()):
+        """Body b's block: up to BLOCK_SWEEPS sweeps of its rows' normals, then up to
+        BLOCK_SWEEPS with friction, alternating direction; a phase ends once no row moves its
+        anchor by more than tol·|r|."""
+        tol = ti.static(runtime.tolerance())
+        first, count = self.block_first[b], self.block_len[b]
+        inner = 0
+        while inner < 2 * BLOCK_SWEEPS:
+            friction = inner >= BLOCK_SWEEPS
+            converged = True
+            for j in range(count):
+                k = b_rows[first + ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
+                moved = self.solve_block_row(k, b, friction, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                             b_lever, b_slip, b_gap, b_k)
+                if moved > tol * b_lever[k].norm():
+                    converged = False
+            inner += 1
+            if converged:
+                inner = ti.select(friction, 2 * BLOCK_SWEEPS, ti.max(inner, BLOCK_SWEEPS))
 
     @ti.func
     def solve_block_row(self, k: ti.i32, b: ti.i32, friction: bool, c_tri: ti.template(), c_normal: ti.template(),
