@@ -29,7 +29,10 @@ class BodySpec:
     at the centre of mass); friction (Coulomb μ, static and dynamic); restitution in [0, 1];
     compliance m/N (soft bodies' edges); damping 1/s, the rate at which a soft body's
     particles lose their velocity relative to the body's rigid motion (0: none); drag 1/s,
-    the rate at which every point of a moving body loses its velocity (still air; 0: none)."""
+    the rate at which every point of a moving body loses its velocity (velocity damping,
+    standing in for the dissipation that point contacts lack; 0: none); spin_friction m, the
+    largest torque about a contact's normal per newton of its normal force (a contact patch's
+    radius times μ; point contacts have none; 0: none)."""
 
     name: str
     vertices: np.ndarray
@@ -43,6 +46,7 @@ class BodySpec:
     compliance: float = DEFAULT_SOFT_COMPLIANCE
     damping: float = 0.0
     drag: float = 0.0
+    spin_friction: float = 0.0
     source: str | None = None  # the mesh file, named in error messages
 
 
@@ -150,6 +154,8 @@ class ModelBuilder:
             raise ValueError(f"body {spec.name!r}: damping must be >= 0, got {spec.damping}")
         if not spec.drag >= 0.0:
             raise ValueError(f"body {spec.name!r}: drag must be >= 0, got {spec.drag}")
+        if not spec.spin_friction >= 0.0:
+            raise ValueError(f"body {spec.name!r}: spin_friction must be >= 0, got {spec.spin_friction}")
         mesh, warnings = checked_mesh(spec.name, spec.vertices, spec.faces, spec.source)
         self.meshes.append(mesh)
         self.warnings += warnings
@@ -236,6 +242,7 @@ class ModelBuilder:
                 body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
                 body_damping=_from(scalar_field(n_b), np.array([s.damping for s in self.specs], real)),
                 body_drag=_from(scalar_field(n_b), np.array([s.drag for s in self.specs], real)),
+                body_spin_friction=_from(scalar_field(n_b), np.array([s.spin_friction for s in self.specs], real)),
                 body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
                 vertex_body=_from(scalar_field(n_v, i32), np.concatenate(vertex_body)),
                 vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),

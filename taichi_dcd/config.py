@@ -79,6 +79,7 @@ class BodyConfig:
     compliance: float = 1e-7
     damping: float = 0.0
     drag: float = 0.0
+    spin_friction: float = 0.0
 
 
 @dataclass
@@ -96,7 +97,8 @@ _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "it
 _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg",
-              "damping": "nonneg", "drag": "nonneg"}
+              "damping": "nonneg", "drag": "nonneg",
+              "spin_friction": "nonneg"}
 _KINDS = ("rigid", "soft", "static")
 
 
@@ -199,7 +201,7 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
     √factor, so that under the same gravity the motion is the same motion, L times larger:
     positions and meshes ×L, velocities and frame_dt ×√L, forces ×L³ (masses grow as L³),
     soft compliance ×L⁻² (the same strain under L³ times the load), damping and drag rates
-    ×L^-1/2, length_scale ×L."""
+    ×L^-1/2, spin friction and length_scale ×L."""
     import copy
 
     if not (math.isfinite(factor) and factor > 0):
@@ -219,4 +221,5 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
         body.compliance /= factor ** 2
         body.damping /= root
         body.drag /= root
+        body.spin_friction *= factor
     return scaled

@@ -48,7 +48,8 @@ class Model:
     centre of mass; body_friction, body_restitution (B,); body_vertex_range, body_tri_range (B,)
     ivec2 [start, end); body_compliance (B,) m/N of a soft body's edges, body_damping (B,) 1/s the
     decay rate of its particles' velocities relative to its rigid motion; body_drag (B,) 1/s the
-    decay rate of every point's velocity (still air); body_rest_volume (B,) m³.
+    decay rate of every point's velocity (velocity damping); body_spin_friction (B,) m, the
+    largest torque about a contact normal per newton of normal force; body_rest_volume (B,) m³.
     vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
     indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
@@ -73,6 +74,7 @@ class Model:
     body_compliance: ti.Field
     body_damping: ti.Field
     body_drag: ti.Field
+    body_spin_friction: ti.Field
     body_rest_volume: ti.Field
     vertex_body: ti.Field
     vertex_local: ti.Field

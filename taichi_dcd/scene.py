@@ -72,7 +72,7 @@ class Scene:
                     name=body.name, vertices=mesh.vertices, faces=mesh.faces, kind=body.kind,
                     density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
                     restitution=body.restitution, compliance=body.compliance, damping=body.damping,
-                    drag=body.drag,
+                    drag=body.drag, spin_friction=body.spin_friction,
                     source=str(config.base_dir / body.mesh) if body.mesh else None))
             except ValueError as exc:  # SceneError included
                 raise SceneError(f"{config.source}: {exc}") from None

@@ -219,6 +219,8 @@ class XPBDSolver:
             raise ValueError(f"unknown broad_phase {broad_phase!r}: auto, brute or grid")
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
+        # Spin friction is compiled in only where some body has it.
+        self.has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
         self.contact_growths = 0
         rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
         sharp_bits = sharp_edge_bits(m, rest_x) if m.has_soft else None
@@ -1135,6 +1137,50 @@ class XPBDSolver:
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
                 self.solve_contact_velocity(k, h, g_norm, c_tri, c_bary_moved, c_bary_other, c_normal,
                                             c_lambda_n, c_lambda_t, c_vn0, c_impulse_t)
+        if ti.static(self.has_spin_friction):
+            for k in range(n_contacts):
+                self.solve_contact_spin(k, h, c_tri, c_normal, c_lambda_n)
+
+    @ti.func
+    def spin_inv_inertia(self, b: ti.i32, n: vec3) -> float:
+        """n·I_w⁻¹·n of body b at its current pose (1/(kg·m²)); 0 unless b is rigid."""
+        w = 0.0
+        if self.model.body_kind[b] == RIGID:
+            n_body = quat_matrix(self.state.body_q[b]).transpose() @ n
+            w = n_body.dot(self.model.body_inv_inertia[b] @ n_body)
+        return w
+
+    @ti.func
+    def solve_contact_spin(self, k: ti.i32, h: float, c_tri: ti.template(), c_normal: ti.template(),
+                           c_lambda_n: ti.template()):
+        """Spin (torsional) friction of an active contact between rigid or static bodies: an
+        angular impulse L·N cancels the bodies' relative spin s = (ω_m − ω_o)·N, L = −s/(N·I_m⁻¹N
+        + N·I_o⁻¹N), within Coulomb's bound |L| ≤ μ_s·λ_n/h (μ_s in m: the torque per newton
+        of normal force). A point contact has no torque about its normal, so a body held at
+        two points turns freely about the line through them: a spike hanging between a
+        groove's wall and a wedge swung about it for seconds."""
+        tri = c_tri[k]
+        body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+        mu_s = 0.5 * (self.model.body_spin_friction[body_m] + self.model.body_spin_friction[body_o])
+        if c_lambda_n[k] > 0.0 and mu_s > 0.0 and not self.involves_soft(tri[0], tri[1]):
+            n = c_normal[k]
+            f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+            w = f_m * self.spin_inv_inertia(body_m, n) + f_o * self.spin_inv_inertia(body_o, n)
+            if w > 0.0:
+                spin = 0.0
+                if self.model.body_kind[body_m] == RIGID:
+                    spin += self.state.body_w[body_m].dot(n)
+                if self.model.body_kind[body_o] == RIGID:
+                    spin -= self.state.body_w[body_o].dot(n)
+                bound = mu_s * c_lambda_n[k] / h
+                impulse = ti.min(ti.max(-spin / w, -bound), bound)
+                for r in ti.static(range(2)):
+                    b = body_m if r == 0 else body_o
+                    f = f_m if r == 0 else -f_o
+                    if self.model.body_kind[b] == RIGID:
+                        rot = quat_matrix(self.state.body_q[b])
+                        self.state.body_w[b] += (f * impulse) * (rot @ (self.model.body_inv_inertia[b]
+                                                                         @ (rot.transpose() @ n)))
 
     # ------------------------------------------------------------- soft bodies
     @ti.func
@@ -1223,7 +1269,7 @@ class XPBDSolver:
 
     @ti.func
     def apply_drag(self, b: ti.i32, h: float):
-        """Linear drag of still air: every point of body b loses the fraction 1 − exp(−drag·h)
+        """Linear velocity damping (drag): every point of body b loses the fraction 1 − exp(−drag·h)
         of its velocity over the substep (dv/dt = −drag·v). For a rigid body that is v and ω
         alike (the force −drag·m·v at the centre of mass and the torque −drag·I·ω)."""
         rate = self.model.body_drag[b]
