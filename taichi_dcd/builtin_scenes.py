@@ -100,6 +100,11 @@ PILE_SUBDIVISIONS = 3   # spikes 384, wedges 512, crack blocks 1,536, hole block
 HIRES_SUBDIVISIONS = 6  # spike 24,576, ground 49,152; the crack block takes one fewer (24,576)
 
 
+# m: without spin friction a spike held at two points (a groove's wall and a wedge) swung
+# about the line through them for 10 s and more (README, "Large scenes").
+PILE_SPIN_FRICTION = 2e-3
+
+
 def _pile() -> dict:
     """At least 100 spikes and wedges dropped onto a bed of cracks and holes, ≥ 50k
     triangles (issue 6). Seeded, so every run builds the same pile."""
@@ -124,6 +129,8 @@ def _pile() -> dict:
                 bodies.append({"name": f"{shape}_{layer}_{i}_{j}", "kind": "rigid", "shape": shape, "params": refine,
                                "scale": PILE_SCALE, "rotation": [180.0 + tilt[0], rng.uniform(0.0, 360.0), tilt[1]],
                                "position": [x, 2.2 + 1.2 * layer, z]})
+    for body in bodies:
+        body["spin_friction"] = PILE_SPIN_FRICTION
     return {"sim": _sim(), "body": bodies}
 
 
