@@ -1142,13 +1142,14 @@ class XPBDSolver:
                 self.solve_contact_spin(k, h, c_tri, c_normal, c_lambda_n)
 
     @ti.func
-    def spin_inv_inertia(self, b: ti.i32, n: vec3) -> float:
-        """n·I_w⁻¹·n of body b at its current pose (1/(kg·m²)); 0 unless b is rigid."""
-        w = 0.0
+    def spin_response(self, b: ti.i32, n: vec3) -> vec3:
+        """I_w⁻¹·n of body b at its current pose (1/(kg·m²)): its change of ω per unit angular
+        impulse about n; zero unless b is rigid."""
+        out = vec3(0.0)
         if self.model.body_kind[b] == RIGID:
-            n_body = quat_matrix(self.state.body_q[b]).transpose() @ n
-            w = n_body.dot(self.model.body_inv_inertia[b] @ n_body)
-        return w
+            rot = quat_matrix(self.state.body_q[b])
+            out = rot @ (self.model.body_inv_inertia[b] @ (rot.transpose() @ n))
+        return out
 
     @ti.func
     def solve_contact_spin(self, k: ti.i32, h: float, c_tri: ti.template(), c_normal: ti.template(),
@@ -1165,22 +1166,15 @@ class XPBDSolver:
         if c_lambda_n[k] > 0.0 and mu_s > 0.0 and not self.involves_soft(tri[0], tri[1]):
             n = c_normal[k]
             f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
-            w = f_m * self.spin_inv_inertia(body_m, n) + f_o * self.spin_inv_inertia(body_o, n)
+            dw_m, dw_o = f_m * self.spin_response(body_m, n), f_o * self.spin_response(body_o, n)
+            w = n.dot(dw_m + dw_o)
             if w > 0.0:
-                spin = 0.0
-                if self.model.body_kind[body_m] == RIGID:
-                    spin += self.state.body_w[body_m].dot(n)
-                if self.model.body_kind[body_o] == RIGID:
-                    spin -= self.state.body_w[body_o].dot(n)
+                # A static body's ω is zero: only rigid bodies move (update_body_velocity).
+                spin = (self.state.body_w[body_m] - self.state.body_w[body_o]).dot(n)
                 bound = mu_s * c_lambda_n[k] / h
                 impulse = ti.min(ti.max(-spin / w, -bound), bound)
-                for r in ti.static(range(2)):
-                    b = body_m if r == 0 else body_o
-                    f = f_m if r == 0 else -f_o
-                    if self.model.body_kind[b] == RIGID:
-                        rot = quat_matrix(self.state.body_q[b])
-                        self.state.body_w[b] += (f * impulse) * (rot @ (self.model.body_inv_inertia[b]
-                                                                         @ (rot.transpose() @ n)))
+                self.state.body_w[body_m] += impulse * dw_m
+                self.state.body_w[body_o] -= impulse * dw_o
 
     # ------------------------------------------------------------- soft bodies
     @ti.func
