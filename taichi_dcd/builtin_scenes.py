@@ -105,7 +105,7 @@ HIRES_SUBDIVISIONS = 6  # spike 24,576, ground 49,152; the crack block takes one
 PILE_SPIN_FRICTION = 2e-3
 
 # Gauss-Seidel sweeps a substep: a heap four bodies high converges far slower than one body
-# on a support. At the default 8 sweeps every body of the settled heap crept at 2-3 mm/s
+# on a support. At the default 8 sweeps the landed heap crept at 2-3 mm/s
 # however high the friction (μ = 2 too); at 32 it meets the rest criterion at 3.84 s and
 # creeps less after it (README, "Large scenes").
 PILE_ITERATIONS = 32
