@@ -39,7 +39,8 @@ from .geometry import barycentric, longest_edge_sq
 from .model import RIGID, SOFT, STATIC, Model, State, mat_field, scalar_field, vec_field
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 from .rigid import (apply_positional_impulse, apply_velocity_impulse, carried_angular_velocity,
-                    generalized_inv_mass, inv_mass_matrix_world, quat_matrix, quat_rotate, rotate_by)
+                    generalized_inv_mass, inv_mass_matrix_world, quat_matrix, quat_rotate, rotate_by,
+                    world_times)
 from .tunnelling import TUNNEL_FRACTION
 
 vec3 = ti.math.vec3
@@ -1147,8 +1148,7 @@ class XPBDSolver:
         impulse about n; zero unless b is rigid."""
         out = vec3(0.0)
         if self.model.body_kind[b] == RIGID:
-            rot = quat_matrix(self.state.body_q[b])
-            out = rot @ (self.model.body_inv_inertia[b] @ (rot.transpose() @ n))
+            out = world_times(self.state.body_q[b], self.model.body_inv_inertia[b], n)
         return out
 
     @ti.func
