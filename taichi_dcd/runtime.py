@@ -8,10 +8,12 @@ compiled kernels are dropped) and starts it anew.
 
 from __future__ import annotations
 
+import gc
 from contextlib import contextmanager
 
 import numpy as np
 import taichi as ti
+from taichi.lang._ndarray import Ndarray
 
 from taichi_dcd import kernel_cache
 
@@ -83,11 +85,21 @@ def init(
     _settings = wanted
 
 
+# Ndarrays of programs already reset that were still referenced then (see reset).
+_stale_ndarrays: list = []
+
+
 def reset() -> None:
     """Drop the running Taichi program (its fields and compiled kernels); the next call
     that needs Taichi starts it anew. Fields and solvers made before are unusable after."""
     global _settings
     if _settings is not None:
+        # Taichi's Ndarray.__del__ hands its pointer to whichever program is current then:
+        # an array of this program collected after the next init would free the new
+        # program's array that reuses its address (test workers died in JIT code). What
+        # can die now dies under its own program; the rest is kept alive for good.
+        gc.collect()
+        _stale_ndarrays.extend(o for o in gc.get_objects() if isinstance(o, Ndarray))
         ti.reset()
         _settings = None
 

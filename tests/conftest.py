@@ -33,7 +33,10 @@ def fresh_taichi_per_file():
     tests' scenes in one program (every solver's kernels compiled into it and kept) died
     without a signal in four of about eleven runs, each time in a test that runs a soft body's
     frame in debug mode; a fresh program per file bounds what one program holds. That this
-    is why it died is not proven."""
+    is why it died is not proven. A later crash (a segfault in JIT code in the first soft
+    test of a file) fits a mechanism that is shown (test_package): Scenes of the previous
+    file collected after the reset freed the new program's contact arrays at the same
+    addresses; runtime.reset now keeps such arrays alive."""
     from taichi_dcd import runtime
 
     runtime.reset()

@@ -41,6 +41,27 @@ def test_init_rejects_unknown_settings():
         taichi_dcd.init(arch="tpu")
 
 
+def test_arrays_left_from_a_reset_program_leave_the_new_ones_alone():
+    """init with other settings restarts Taichi. An ndarray of the old program still held
+    then and dropped afterwards must not free the new program's array that took its
+    address (Taichi's Ndarray.__del__ asks whichever program is current): the new arrays
+    keep their values and the process does not crash."""
+    out = run_python(
+        "import gc, numpy as np, taichi as ti, taichi_dcd\n"
+        "taichi_dcd.init(precision='f64', offline_cache=False)\n"
+        "old = [ti.ndarray(ti.f64, shape=100) for _ in range(20)]\n"
+        "taichi_dcd.init(precision='f32', offline_cache=False)\n"
+        "new = [ti.ndarray(ti.f32, shape=100) for _ in range(20)]\n"
+        "for k, a in enumerate(new):\n"
+        "    a.from_numpy(np.full(100, k, np.float32))\n"
+        "del old\n"
+        "gc.collect()\n"
+        "print('wrong', sum(not np.all(a.to_numpy() == k) for k, a in enumerate(new)))"
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "wrong 0"
+
+
 def test_cli_help_lists_commands():
     out = subprocess.run([sys.executable, "-m", "taichi_dcd", "--help"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
