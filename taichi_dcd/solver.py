@@ -564,8 +564,22 @@ class XPBDSolver:
             if not self.involves_soft(t_m, t_o):
                 # A row within the allowance is resting contact: its own face is the exit.
                 if depth > max_push:
-                    fresh = depth <= max_push + self.approach(t_m, t_o, point, depth, normal)
-                    t_o, depth, normal, on_surface = self.nearest_exit(t_o, point, depth, normal, fresh)
+                    # A grazing row: a depth this substep's motion cannot have made, to a target
+                    # outside the moved body. A box resting on a free box turned 7° from it sinks
+                    # ~1e-5 m a substep, and its side faces then cross the lower box's side faces
+                    # in strips that high near its top corners; Eq. 6 measured those pairs from a
+                    # corner of one box, outside the other, pushed onto the other's side plane
+                    # (0.03-0.24 m sideways), with the point on the lower box's top plane, and the
+                    # sideways pushes kept the upper box jittering at 0.05-0.1 m/s. A wedge's rows
+                    # at a crack's rim look alike but reach a rim inside the wedge: they keep
+                    # their depth (held at depth 0 without the target test, the wedge ended
+                    # 1 mm inside the crack block; dropped, 8 mm). A point on a plane of both
+                    # bodies (the coplanar end faces of parallel wedges) is left to Eq. 6: which
+                    # side rounding puts it on changes when the scene is scaled.
+                    may_hold = (depth > max_push + self.approach(t_m, t_o, point, depth, normal)
+                                and not self.target_inside(t_m, point + depth * normal)
+                                and not self.on_convex_neighbour(t_m, point))
+                    t_o, depth, normal, on_surface = self.nearest_exit(t_o, point, depth, normal, may_hold)
                 depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
             duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
             if duplicate:
@@ -587,7 +601,7 @@ class XPBDSolver:
         return rows
 
     @ti.func
-    def nearest_exit(self, t_other: ti.i32, point: vec3, depth: float, normal: vec3, fresh: bool):
+    def nearest_exit(self, t_other: ti.i32, point: vec3, depth: float, normal: vec3, may_hold: bool):
         """The face a contact's point leaves the other body through: t_other's plane, where
         the narrow phase measured `depth` along `normal`, or the plane of a convex neighbour
         of t_other (tri_convex_nbr) behind which the point lies by less than
@@ -596,15 +610,10 @@ class XPBDSolver:
         side face, and the pair's depth is how far the wedge's base reaches in past the side
         (0.24 m), not the 1e-5 m it is below the top; pushed along the side's normal every
         substep, the wedge crept off the edge. A point on a convex neighbour's plane (within
-        rounding) is on the other body's surface, not in it: unless this substep's motion
-        made the depth (`fresh`), it becomes a row along that neighbour's normal at depth 0,
-        holding the point there. A box resting on a free box turned 7° from it sinks ~1e-5 m
-        a substep, and its side faces then cross the lower box's side faces in strips that
-        high near its top corners; Eq. 6 measured those pairs from a corner of the one box
-        pushed onto a side plane of the other, 0.03-0.24 m sideways, with the point on the
-        lower box's top plane, and the sideways pushes kept the upper box jittering at
-        0.05-0.1 m/s. Returns (triangle, depth, unit normal, whether the point is on the
-        surface)."""
+        rounding) is on the other body's surface, not in it; where the caller found the row
+        a grazing one (`may_hold`: add_pair_contact), it becomes a row along that
+        neighbour's normal at depth 0, holding the point there. Returns (triangle, depth,
+        unit normal, whether the point is held on the surface)."""
         tol = ti.static(runtime.tolerance())
         t_best, d_best, n_best = t_other, depth, normal
         on_surface = False
@@ -626,12 +635,38 @@ class XPBDSolver:
                     floor = tol * ti.sqrt(longest_edge_sq(q0, q1, q2))
                     if d > floor and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
                         t_best, d_best, n_best = t, d, n_t
-                    elif ti.abs(d) <= floor and not on_surface and not fresh:
+                    elif ti.abs(d) <= floor and not on_surface and may_hold:
                         on_surface = True
                         t_surface, n_surface = t, n_t
         if on_surface:
             t_best, d_best, n_best = t_surface, 0.0, n_surface
         return t_best, d_best, n_best, on_surface
+
+    @ti.func
+    def on_convex_neighbour(self, t: ti.i32, point: vec3) -> bool:
+        """Whether `point` lies on the plane of a convex neighbour of triangle t, within rounding."""
+        tol = ti.static(runtime.tolerance())
+        found = False
+        nbr = self.tri_convex_nbr[t]
+        for k in ti.static(range(3)):
+            if nbr[k] >= 0:
+                idx = self.model.tri_indices[nbr[k]]
+                q0, q1, q2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
+                raw = (q1 - q0).cross(q2 - q0)
+                length = raw.norm()
+                if length > 0.0 and ti.abs(raw.dot(q0 - point)) <= tol * ti.sqrt(longest_edge_sq(q0, q1, q2)) * length:
+                    found = True
+        return found
+
+    @ti.func
+    def target_inside(self, t_moved: ti.i32, target: vec3) -> bool:
+        """Whether `target` lies behind t_moved's plane by more than rounding."""
+        tol = ti.static(runtime.tolerance())
+        im = self.model.tri_indices[t_moved]
+        m0, m1, m2 = self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]]
+        raw = (m1 - m0).cross(m2 - m0)
+        length = raw.norm()
+        return length > 0.0 and raw.dot(m0 - target) > tol * ti.sqrt(longest_edge_sq(m0, m1, m2)) * length
 
     @ti.func
     def approach(self, t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3) -> float:
