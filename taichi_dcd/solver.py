@@ -573,12 +573,9 @@ class XPBDSolver:
                     # sideways pushes kept the upper box jittering at 0.05-0.1 m/s. A wedge's rows
                     # at a crack's rim look alike but reach a rim inside the wedge: they keep
                     # their depth (held at depth 0 without the target test, the wedge ended
-                    # 1 mm inside the crack block; dropped, 8 mm). A point on a plane of both
-                    # bodies (the coplanar end faces of parallel wedges) is left to Eq. 6: which
-                    # side rounding puts it on changes when the scene is scaled.
+                    # 1 mm inside the crack block; dropped, 8 mm).
                     may_hold = (depth > max_push + self.approach(t_m, t_o, point, depth, normal)
-                                and not self.target_inside(t_m, point + depth * normal)
-                                and not self.on_convex_neighbour(t_m, point))
+                                and not self.target_inside(t_m, point + depth * normal))
                     t_o, depth, normal, on_surface = self.nearest_exit(t_o, point, depth, normal, may_hold)
                 depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
             duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
@@ -641,22 +638,6 @@ class XPBDSolver:
         if on_surface:
             t_best, d_best, n_best = t_surface, 0.0, n_surface
         return t_best, d_best, n_best, on_surface
-
-    @ti.func
-    def on_convex_neighbour(self, t: ti.i32, point: vec3) -> bool:
-        """Whether `point` lies on the plane of a convex neighbour of triangle t, within rounding."""
-        tol = ti.static(runtime.tolerance())
-        found = False
-        nbr = self.tri_convex_nbr[t]
-        for k in ti.static(range(3)):
-            if nbr[k] >= 0:
-                idx = self.model.tri_indices[nbr[k]]
-                q0, q1, q2 = self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]], self.state.vertex_x[idx[2]]
-                raw = (q1 - q0).cross(q2 - q0)
-                length = raw.norm()
-                if length > 0.0 and ti.abs(raw.dot(q0 - point)) <= tol * ti.sqrt(longest_edge_sq(q0, q1, q2)) * length:
-                    found = True
-        return found
 
     @ti.func
     def target_inside(self, t_moved: ti.i32, target: vec3) -> bool:
