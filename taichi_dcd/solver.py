@@ -484,8 +484,7 @@ class XPBDSolver:
         c_bary_moved[k] = bary_m
         c_bary_other[k] = bary_o
         c_normal[k] = normal
-        approach = normal.dot((p_other - self.anchor_world(t_other, bary_o, True))
-                              - (p_moved - self.anchor_world(t_moved, bary_m, True)))
+        approach = self.closing(t_moved, t_other, bary_m, bary_o, normal, p_moved, p_other)
         c_budget[k] = ti.max(approach, 0.0) + max_push
         c_lambda_n[k] = 0.0
         c_lambda_t[k] = vec3(0.0)
@@ -559,11 +558,28 @@ class XPBDSolver:
             found, t_m, t_o, depth, normal, point = self.touching_pair_contact(ab[0], ab[1])
             side = ti.select(found, 0, -1)
         rows = n
+        on_surface = False
         if side >= 0:
             if not self.involves_soft(t_m, t_o):
                 # A row within the allowance is resting contact: its own face is the exit.
                 if depth > max_push:
-                    t_o, depth, normal = self.nearest_exit(t_o, point, depth, normal)
+                    # A grazing row between two moving bodies: a depth this substep's motion
+                    # cannot have made, to a target outside the moved body. A box resting on a
+                    # free box turned 7° from it sinks ~1e-5 m a substep, and its side faces then
+                    # cross the lower box's side faces in strips that high near its top corners;
+                    # Eq. 6 measured those pairs from a corner of one box, outside the other,
+                    # pushed onto the other's side plane (0.03-0.24 m sideways), with the point on
+                    # the lower box's top plane, and the sideways pushes kept the upper box
+                    # jittering at 0.01-0.1 m/s. A wedge's rows at a crack's rim look alike but
+                    # reach a rim inside the wedge: they keep their depth (held at depth 0 without
+                    # the target test, the wedge ended 1 mm inside the crack block; dropped, 8 mm).
+                    # Rows against static bodies are left to the static blocks: held, the pile
+                    # crept and `wedges` x1e3 parted from x1 at its first contact.
+                    may_hold = (self.model.body_kind[self.model.tri_body[t_m]] != STATIC
+                                and self.model.body_kind[self.model.tri_body[t_o]] != STATIC
+                                and depth > max_push + self.approach(t_m, t_o, point, depth, normal)
+                                and not self.target_inside(t_m, point + depth * normal))
+                    t_o, depth, normal, on_surface = self.nearest_exit(t_o, point, depth, normal, may_hold)
                 depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
             duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
             if duplicate:
@@ -578,11 +594,18 @@ class XPBDSolver:
             if not duplicate:
                 self.write_contact(n, t_m, t_o, depth, normal, point, max_push, c_tri, c_bary_moved, c_bary_other,
                                    c_normal, c_budget, c_lambda_n, c_lambda_t, c_vn0)
+                if on_surface:
+                    # Its depth is 0 by construction: whatever it corrects, the solve made, so it
+                    # has no budget to spend. With the usual one, rows of other pairs pushed a
+                    # pile's wedge into its neighbour once the held rows had spent it (probed:
+                    # 7.6-8.2e-4 m deep, nothing left to correct), and the two sank 0.9 mm into
+                    # each other by 7 s.
+                    c_budget[n] = ti.math.inf
                 rows += 1
         return rows
 
     @ti.func
-    def nearest_exit(self, t_other: ti.i32, point: vec3, depth: float, normal: vec3):
+    def nearest_exit(self, t_other: ti.i32, point: vec3, depth: float, normal: vec3, may_hold: bool):
         """The face a contact's point leaves the other body through: t_other's plane, where
         the narrow phase measured `depth` along `normal`, or the plane of a convex neighbour
         of t_other (tri_convex_nbr) behind which the point lies by less than
@@ -590,9 +613,15 @@ class XPBDSolver:
         edge sinks ~1e-5 m a substep into the top face, its end faces then cross the block's
         side face, and the pair's depth is how far the wedge's base reaches in past the side
         (0.24 m), not the 1e-5 m it is below the top; pushed along the side's normal every
-        substep, the wedge crept off the edge. Returns (triangle, depth, unit normal)."""
+        substep, the wedge crept off the edge. A point on a convex neighbour's plane (within
+        rounding) is on the other body's surface, not in it; where the caller found the row
+        a grazing one (`may_hold`: add_pair_contact), it becomes a row along that
+        neighbour's normal at depth 0, holding the point there. Returns (triangle, depth,
+        unit normal, whether the point is held on the surface)."""
         tol = ti.static(runtime.tolerance())
         t_best, d_best, n_best = t_other, depth, normal
+        on_surface = False
+        t_surface, n_surface = t_other, normal
         nbr = self.tri_convex_nbr[t_other]
         for k in ti.static(range(3)):
             t = nbr[k]
@@ -610,7 +639,41 @@ class XPBDSolver:
                     floor = tol * ti.sqrt(longest_edge_sq(q0, q1, q2))
                     if d > floor and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
                         t_best, d_best, n_best = t, d, n_t
-        return t_best, d_best, n_best
+                    elif ti.abs(d) <= floor and not on_surface and may_hold:
+                        on_surface = True
+                        t_surface, n_surface = t, n_t
+        if on_surface:
+            t_best, d_best, n_best = t_surface, 0.0, n_surface
+        return t_best, d_best, n_best, on_surface
+
+    @ti.func
+    def target_inside(self, t_moved: ti.i32, target: vec3) -> bool:
+        """Whether `target` lies behind t_moved's plane by more than rounding."""
+        tol = ti.static(runtime.tolerance())
+        im = self.model.tri_indices[t_moved]
+        m0, m1, m2 = self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]]
+        raw = (m1 - m0).cross(m2 - m0)
+        length = raw.norm()
+        return length > 0.0 and raw.dot(m0 - target) > tol * ti.sqrt(longest_edge_sq(m0, m1, m2)) * length
+
+    @ti.func
+    def approach(self, t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3) -> float:
+        """How much a row from `point` on t_moved to point + depth·normal on t_other closed
+        along the normal during this substep (m; start_row's approach)."""
+        im, io = self.model.tri_indices[t_moved], self.model.tri_indices[t_other]
+        target = point + depth * normal
+        bary_m = barycentric(point, self.state.vertex_x[im[0]], self.state.vertex_x[im[1]], self.state.vertex_x[im[2]])
+        bary_o = barycentric(target, self.state.vertex_x[io[0]], self.state.vertex_x[io[1]],
+                             self.state.vertex_x[io[2]])
+        return self.closing(t_moved, t_other, bary_m, bary_o, normal, point, target)
+
+    @ti.func
+    def closing(self, t_moved: ti.i32, t_other: ti.i32, bary_m: vec3, bary_o: vec3, normal: vec3, p_moved: vec3,
+                p_other: vec3) -> float:
+        """How much N·(p_other − p_moved) grew during this substep (m), for anchors bary_m on
+        t_moved (now at p_moved) and bary_o on t_other (now at p_other)."""
+        return normal.dot((p_other - self.anchor_world(t_other, bary_o, True))
+                          - (p_moved - self.anchor_world(t_moved, bary_m, True)))
 
     @ti.func
     def convex_edge_at(self, t: ti.i32, x: vec3) -> vec3:
