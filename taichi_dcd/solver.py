@@ -575,10 +575,12 @@ class XPBDSolver:
                     # the target test, the wedge ended 1 mm inside the crack block; dropped, 8 mm).
                     # Rows against static bodies are left to the static blocks: held, the pile
                     # crept and `wedges` x1e3 parted from x1 at its first contact.
-                    may_hold = (self.model.body_kind[self.model.tri_body[t_m]] != STATIC
-                                and self.model.body_kind[self.model.tri_body[t_o]] != STATIC
-                                and depth > max_push + self.approach(t_m, t_o, point, depth, normal)
-                                and not self.target_inside(t_m, point + depth * normal))
+                    # (Nested: Taichi evaluates both sides of `and`.)
+                    may_hold = False
+                    if (self.model.body_kind[self.model.tri_body[t_m]] != STATIC
+                            and self.model.body_kind[self.model.tri_body[t_o]] != STATIC):
+                        may_hold = (depth > max_push + self.approach(t_m, t_o, point, depth, normal)
+                                    and not self.target_inside(t_m, point + depth * normal))
                     t_o, depth, normal, on_surface = self.nearest_exit(t_o, point, depth, normal, may_hold)
                 depth, normal = self.edge_edge_normal(t_m, t_o, point, depth, normal)
             duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
