@@ -596,12 +596,12 @@ class XPBDSolver:
                     # A resting row against a static body whose point lies on the other body's
                     # surface (on a convex neighbour's plane: nearest_exit) and has not moved
                     # along the row's normal this substep (approach below SURFACE_APPROACH_FRACTION
-                    # of the depth) is no penetration: the depth is measured across the surface, not along the way
-                    # the point came. A box set on a block of its own footprint sinks ~7 µm a
-                    # substep into the block's top; where its bottom edges meet the block's
-                    # vertical edges, pairs of its side faces with the block's side faces around
-                    # the corner measured those 7 µm sideways, and pushed the box 0.1 mm sideways
-                    # and tilted it. (Dropped whenever the approach made less than half the depth,
+                    # of the depth) is no penetration: the depth is measured across the surface,
+                    # not along the way the point came. A box set on a block of its own footprint
+                    # sinks ~7 µm a substep into the block's top; where its bottom edges meet the
+                    # block's vertical edges, pairs of its side faces with the block's side faces
+                    # around the corner measured those 7 µm sideways, and pushed the box 0.1 mm
+                    # sideways and tilted it. (Dropped whenever the approach made less than half the depth,
                     # rows of the pile's loaded bodies went too, and it ended 1 mm deep; between
                     # moving bodies, where held rows do this, a stack of five boxes crept at
                     # 3e-4 m/s instead of 3e-5.)
@@ -620,7 +620,10 @@ class XPBDSolver:
                 if not both_moving:
                     touching = depth <= TOUCHING_DEPTH * self.longest_edge(t_m)
         if keep:
-            duplicate = touching or self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
+            # (Not `or`: Taichi would walk the row chain for a touching row too.)
+            duplicate = touching
+            if not touching:
+                duplicate = self.is_duplicate(n, t_m, t_o, normal, point, c_tri, c_bary_moved, c_normal)
             if duplicate:
                 # The deepest point is a vertex another pair already made a row of (or the row
                 # only touches). Another candidate vertex of this triangle takes the row
@@ -1003,9 +1006,7 @@ class XPBDSolver:
         that point several times and make the Gauss-Seidel result depend on the mesh's
         triangulation (a box dropped flat would spin). Checked only for n <= DEDUP_MAX_ROWS."""
         body_m, body_o = self.model.tri_body[t_moved], self.model.tri_body[t_other]
-        idx = self.model.tri_indices[t_moved]
-        size = ti.sqrt(longest_edge_sq(self.state.vertex_x[idx[0]], self.state.vertex_x[idx[1]],
-                                       self.state.vertex_x[idx[2]]))
+        size = self.longest_edge(t_moved)
         # Copies of one point computed from different triangles differ by rounding, which
         # no threshold at rounding level separates reliably (the same scene scaled by 1e-3
         # rounds differently): √eps of the triangle's size merges them, and nothing else.
