@@ -97,8 +97,9 @@ class ContactConstraints(_GrowableBuffer):
     (vec3 in the tangent plane, kg·m: corrections that point different ways partly cancel), `vn0[k]`
     the relative normal velocity before the solve (m/s, for restitution),
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s);
-    `block_*` the linearisation of a row against a static body (solver.solve_static_blocks):
-    its lever from the body's centre (m), tangential slip (m), gap (m) and 3×3 inverse mass;
+    `block_*` the linearisation of a rigid body's row (solver.solve_blocks):
+    its lever from the (moved) body's centre (m), tangential slip (m), gap (m) and 3×3 inverse
+    mass (the two bodies' summed for a row between rigid bodies);
     `block_rows` the indices of those rows.
     """
 

@@ -98,10 +98,19 @@ TOUCHING_DEPTH = 1e-8
 # A resting row against a static body whose point lies on the other body's surface is not made
 # when its approach this substep is below this fraction of its depth (add_pair_contact).
 SURFACE_APPROACH_FRACTION = 0.01
-# Inner Gauss-Seidel sweeps (normals alone, then as many with friction) of each rigid body's
-# rows against static bodies per outer sweep, on the body linearised at the start of the
-# outer sweep (XPBDSolver.solve_static_blocks).
+# Two rows between the same moving bodies push about opposite ways when their pushes on one
+# body are within this angle of opposite (keep_rows: neither is carried).
+OPPOSED_DEGREES = 30.0
+# Inner Gauss-Seidel sweeps (normals alone, then as many with friction) of each island's rows
+# per outer sweep, on its bodies linearised at the start of the outer sweep
+# (XPBDSolver.solve_blocks): BLOCK_SWEEPS for a lone rigid body against static ones,
+# COUPLED_SWEEPS for bodies touching each other, whose island leaves a phase once no row moves
+# its anchor by more than COUPLED_TOL of its lever (a stack's Gauss-Seidel converges slowly:
+# with opposing rows still carried (keep_rows), a stack of five boxes crept at 1.5e-5 m/s at 64
+# sweeps and rested at 128).
 BLOCK_SWEEPS = 16
+COUPLED_SWEEPS = 128
+COUPLED_TOL = 1e-12
 CONVEX_EDGE_DEGREES = 1.0
 # Resting rows the grid path makes room for per soft vertex (add_resting_contacts): a vertex
 # against a face, an edge (two faces) or a corner (three); edge rows share the room.
@@ -248,14 +257,18 @@ class XPBDSolver:
             # Each rigid body's rotation vector over the current substep (rad): predicted plus
             # every angular correction, added up so that the angular impulses add up exactly.
             self.body_theta = vec_field(m.n_bodies)
-            # solve_static_blocks: each rigid body's move and turn (rad) in the current block
+            # solve_blocks: each rigid body's move and turn (rad) in the current block
             # solve, and its world inverse inertia at the substep's start (set by project).
             self.block_dx = vec_field(m.n_bodies)
             self.block_dtheta = vec_field(m.n_bodies)
             self.block_inv_inertia = mat_field(m.n_bodies)
-            # Each body's rows in b_rows: [block_first, block_first + block_len).
+            # Each island's rows in b_rows, indexed by its root: [block_first, block_first + block_len).
             self.block_first = scalar_field(m.n_bodies, ti.i32)
             self.block_len = scalar_field(m.n_bodies, ti.i32)
+            # Islands of rigid bodies joined by rows between them (union-find: each body's
+            # parent, the root its own), and 1 at the root of an island of several bodies.
+            self.block_island = scalar_field(m.n_bodies, ti.i32)
+            self.block_coupled = scalar_field(m.n_bodies, ti.i32)
             self.body_thickness = scalar_field(m.n_bodies)
             self.body_reach = scalar_field(m.n_bodies)  # farthest vertex from a rigid body's centre (m)
             # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
@@ -1030,7 +1043,12 @@ class XPBDSolver:
         and whose two anchors lie within slip_max (m) of each other across the normal, for
         carried_rows in the next substep. A row carried before may be carried again: a
         support the detection finds only every few substeps is then held in between; once its
-        anchors slide apart (the bodies slip or roll past it) it is let go."""
+        anchors slide apart (the bodies slip or roll past it) it is let go. So is a row
+        between two moving bodies that another row of theirs at the same place pushed back
+        against (opposed_row): where a box's bottom edge crosses the lower box's top edge,
+        two rows along the boxes' side normals (7° apart, about opposite ways) were carried
+        for good, each undoing the other, and kept the boxes' block (solve_blocks) from ever
+        converging."""
         count = 0
         for k in range(n):
             tri = c_tri[k]
@@ -1038,13 +1056,42 @@ class XPBDSolver:
                 normal = c_normal[k]
                 gap = (self.anchor_world(tri[1], c_bary_other[k], False)
                        - self.anchor_world(tri[0], c_bary_moved[k], False))
-                if (gap - gap.dot(normal) * normal).norm() <= slip_max:
+                keep = (gap - gap.dot(normal) * normal).norm() <= slip_max
+                if keep:
+                    keep = not self.opposed_row(k, slip_max, c_tri, c_bary_moved, c_normal, c_lambda_n)
+                if keep:
                     self.carry_tri[count] = ivec2(tri[0], tri[1])
                     self.carry_bary_moved[count] = c_bary_moved[k]
                     self.carry_bary_other[count] = c_bary_other[k]
                     self.carry_normal[count] = normal
                     count += 1
         self.carry_count[0] = count
+
+    @ti.func
+    def opposed_row(self, k: ti.i32, reach: float, c_tri: ti.template(), c_bary_moved: ti.template(),
+                    c_normal: ti.template(), c_lambda_n: ti.template()) -> bool:
+        """Whether another row of this substep between the same two moving bodies pushed
+        (λ_n > 0) about the opposite way (the pushes' directions on one body at more than
+        OPPOSED_DEGREES from opposite) with its moved anchor within `reach` (m) of row k's."""
+        tri = c_tri[k]
+        body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+        found = False
+        if self.model.body_kind[body_m] != STATIC and self.model.body_kind[body_o] != STATIC:
+            point = self.anchor_world(tri[0], c_bary_moved[k], False)
+            cos_opposed = ti.static(np.cos(np.radians(OPPOSED_DEGREES)))
+            for side in ti.static(range(2)):
+                body, other = (body_m, body_o) if side == 0 else (body_o, body_m)
+                j = self.body_last_row[body]
+                while j >= 0 and not found:
+                    tri_j = c_tri[j]
+                    if j != k and self.model.tri_body[tri_j[1]] == other and c_lambda_n[j] > 0.0:
+                        # Row j moves `body` along its normal; row k moves body_m along its own.
+                        push_j = ti.select(body == body_m, 1.0, -1.0) * c_normal[j]
+                        if push_j.dot(c_normal[k]) <= -cos_opposed:
+                            p = self.anchor_world(tri_j[0], c_bary_moved[j], False)
+                            found = (p - point).norm() <= reach
+                    j = tri_j[2]
+        return found
 
     @ti.func
     def has_pair_row(self, t_a: ti.i32, t_b: ti.i32, c_tri: ti.template()) -> bool:
@@ -1541,8 +1588,8 @@ class XPBDSolver:
                 b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(),
                 b_rows: ti.template()):
         """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial
-        loop); each sweep ends with every rigid body's rows against static bodies solved as one
-        block (solve_static_blocks)."""
+        loop); each sweep ends with the rows of rigid bodies (against static bodies and between
+        each other) solved in blocks, one per island of touching bodies (solve_blocks)."""
         self.compute_levels(n_contacts, c_tri)
         # The blocks' turns act through the inverse inertia at the substep's start
         # (apply_positional_impulse), the same for every sweep.
@@ -1563,14 +1610,14 @@ class XPBDSolver:
             # direction so that no contact is always last.
             for j in range(n_contacts):
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
-                if self.block_body(k, c_tri) < 0:
+                if self.block_body(k, c_tri) < 0 and not self.pair_block(k, c_tri):
                     self.solve_contact_normal(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n)
             for j in range(n_contacts):
                 k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
-                if self.block_body(k, c_tri) < 0:
+                if self.block_body(k, c_tri) < 0 and not self.pair_block(k, c_tri):
                     self.solve_contact_friction(k, c_tri, c_bary_moved, c_bary_other, c_normal, c_lambda_n,
                                                 c_lambda_t)
-            self.solve_static_blocks(n_contacts, it, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
+            self.solve_blocks(n_contacts, it, c_tri, c_bary_moved, c_bary_other, c_normal, c_budget,
                                      c_lambda_n, c_lambda_t, b_lever, b_slip, b_gap, b_k, b_rows)
 
     @ti.func
@@ -1588,61 +1635,94 @@ class XPBDSolver:
         return body
 
     @ti.func
-    def solve_static_blocks(self, n_contacts: ti.i32, it: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
-                            c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
-                            c_lambda_n: ti.template(), c_lambda_t: ti.template(), b_lever: ti.template(),
-                            b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(), b_rows: ti.template()):
-        """Each rigid body's rows against static bodies, solved together on the body's motion
-        linearised at the sweep's start (a move Δx and a turn Δθ: an anchor at lever r moves
-        by Δx + Δθ × r), then the body moved once: BLOCK_SWEEPS Gauss-Seidel sweeps of the
-        normals alone, then BLOCK_SWEEPS of normals and friction, each body leaving a phase early
-        once no row of its moves its anchor by more than tol·|r| (sweep_block). Rows projected one at a time
-        on the real pose converge slowly where a body rests on several points: each push turns
-        the body about its centre, which sinks the other points and slides them sideways for
-        friction to undo (a spike lying on its face on the ground kept 1e-7 m of depth at 8
-        sweeps, 5e-9 at 12). Normals first: a substep's sink under gravity is undone by a lift
-        that slides no point, so friction is left only real slip to cancel; with friction from
-        the first sweep, the slides of the unconverged pushes were held as opposing friction
-        at the points, near the cone, and a box at rest on a block alternated between two
-        poses 1e-7 m apart. The linear sweeps cost a few multiplications a row: converging
-        there is cheap, re-measuring the pose is not."""
+    def pair_block(self, k: ti.i32, c_tri: ti.template()) -> bool:
+        """Whether row k is between two rigid bodies (solved in the coupled block)."""
+        tri = c_tri[k]
+        b_m, b_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+        return self.model.body_kind[b_m] == RIGID and self.model.body_kind[b_o] == RIGID
+
+    @ti.func
+    def solve_blocks(self, n_contacts: ti.i32, it: ti.i32, c_tri: ti.template(), c_bary_moved: ti.template(),
+                     c_bary_other: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                     c_lambda_n: ti.template(), c_lambda_t: ti.template(), b_lever: ti.template(),
+                     b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(), b_rows: ti.template()):
+        """The rows of rigid bodies, against static bodies and between each other, solved
+        together on the bodies' motions linearised at the sweep's start (a move Δx and a turn
+        Δθ: an anchor at lever r moves by Δx + Δθ × r), then each body moved once. Bodies that
+        touch each other form an island (union-find over the rows between them); each island
+        sweeps its own rows: BLOCK_SWEEPS Gauss-Seidel sweeps of the normals alone, then
+        BLOCK_SWEEPS of normals and friction for a lone body (COUPLED_SWEEPS for an island of
+        several), leaving a phase early once no row moves its anchor by more than tol·|r|
+        (sweep_block). Rows projected one at a time on the real pose converge slowly where a
+        body rests on several points: each push turns the body about its centre, which sinks
+        the other points and slides them sideways for friction to undo (a spike lying on its
+        face on the ground kept 1e-7 m of depth at 8 sweeps, 5e-9 at 12). Normals first: a
+        substep's sink under gravity is undone by a lift that slides no point, so friction is
+        left only real slip to cancel; with friction from the first sweep, the slides of the
+        unconverged pushes were held as opposing friction at the points, near the cone, and a
+        box at rest on a block alternated between two poses 1e-7 m apart. The linear sweeps
+        cost a few multiplications a row: converging there is cheap, re-measuring the pose is
+        not. Between moving bodies the same holds: projected one at a time, a stack of five
+        boxes crept sideways at 3-6e-5 m/s for good (friction between the boxes unconverged
+        at 8 sweeps); in one island it rests."""
         n_b = ti.static(self.model.n_bodies)
         for b in range(n_b):
             self.block_dx[b] = vec3(0.0)
             self.block_dtheta[b] = vec3(0.0)
             self.block_len[b] = 0
+            self.block_island[b] = b
+            self.block_coupled[b] = 0
         count = 0
         for k in range(n_contacts):
             b = self.block_body(k, c_tri)
-            if b >= 0:
-                self.block_len[b] += 1
+            pair = self.pair_block(k, c_tri)
+            if b >= 0 or pair:
                 tri = c_tri[k]
                 bm, bo = c_bary_moved[k], c_bary_other[k]
                 n = c_normal[k]
                 p_m = self.anchor_world(tri[0], bm, False)
                 p_o = self.anchor_world(tri[1], bo, False)
-                r = 0.5 * (p_m + p_o) - self.state.body_x_prev[b]
-                b_lever[k] = r
                 b_gap[k] = n.dot(p_o - p_m)
                 slip = (p_m - self.anchor_world(tri[0], bm, True)) - (p_o - self.anchor_world(tri[1], bo, True))
                 b_slip[k] = slip - slip.dot(n) * n
-                b_k[k] = inv_mass_matrix_world(self.model.body_inv_mass[b], self.block_inv_inertia[b], r)
+                p_c = 0.5 * (p_m + p_o)
+                if b >= 0:
+                    r = p_c - self.state.body_x_prev[b]
+                    b_lever[k] = r
+                    b_k[k] = inv_mass_matrix_world(self.model.body_inv_mass[b], self.block_inv_inertia[b], r)
+                else:
+                    body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+                    self.join_islands(body_m, body_o)
+                    r_m = p_c - self.state.body_x_prev[body_m]
+                    r_o = p_c - self.state.body_x_prev[body_o]
+                    b_lever[k] = r_m
+                    f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+                    b_k[k] = (f_m * inv_mass_matrix_world(self.model.body_inv_mass[body_m],
+                                                          self.block_inv_inertia[body_m], r_m)
+                              + f_o * inv_mass_matrix_world(self.model.body_inv_mass[body_o],
+                                                            self.block_inv_inertia[body_o], r_o))
                 count += 1
         if count > 0:
-            # Each body's rows together, in row order (a counting sort by body): a block moves
-            # no other body, so each body sweeps its own rows, and leaves a phase once no row of
-            # its moves its anchor by more than tol·|r|. A body still landing does not keep
-            # the resting ones sweeping.
+            # Each island's rows together, in row order (a counting sort by island root): a
+            # block moves no body of another island, so each island sweeps its own rows, and
+            # leaves a phase once no row of its moves its anchor by more than tol·|r|. A body
+            # still landing does not keep the resting ones sweeping.
+            for b in range(n_b):
+                self.block_island[b] = self.island_root(b)
+            for k in range(n_contacts):
+                root = self.row_island(k, c_tri)
+                if root >= 0:
+                    self.block_len[root] += 1
             first = 0
             for b in range(n_b):
                 self.block_first[b] = first
                 first += self.block_len[b]
                 self.block_len[b] = 0
             for k in range(n_contacts):
-                b = self.block_body(k, c_tri)
-                if b >= 0:
-                    b_rows[self.block_first[b] + self.block_len[b]] = k
-                    self.block_len[b] += 1
+                root = self.row_island(k, c_tri)
+                if root >= 0:
+                    b_rows[self.block_first[root] + self.block_len[root]] = k
+                    self.block_len[root] += 1
             for b in range(n_b):
                 if self.block_len[b] > 0:
                     self.sweep_block(b, it, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t, b_lever, b_slip,
@@ -1656,28 +1736,112 @@ class XPBDSolver:
                         self.state.body_q[b] = rotate_by(self.state.body_q_prev[b], self.body_theta[b])
 
     @ti.func
+    def island_root(self, b: ti.i32) -> ti.i32:
+        """The root of body b's island (union-find with path halving; serial)."""
+        root = b
+        while self.block_island[root] != root:
+            self.block_island[root] = self.block_island[self.block_island[root]]
+            root = self.block_island[root]
+        return root
+
+    @ti.func
+    def join_islands(self, b_a: ti.i32, b_b: ti.i32):
+        """Put rigid bodies b_a and b_b in one island, rooted at the lower index (serial)."""
+        root_a, root_b = self.island_root(b_a), self.island_root(b_b)
+        if root_a != root_b:
+            low, high = ti.min(root_a, root_b), ti.max(root_a, root_b)
+            self.block_island[high] = low
+            self.block_coupled[low] = 1
+
+    @ti.func
+    def row_island(self, k: ti.i32, c_tri: ti.template()) -> ti.i32:
+        """The island root of row k if it is a block row (its rigid body's against a static
+        body, or between two rigid bodies), else -1; valid once block_island holds roots."""
+        b = self.block_body(k, c_tri)
+        if self.pair_block(k, c_tri):
+            b = self.model.tri_body[c_tri[k][0]]
+        return ti.select(b >= 0, self.block_island[ti.max(b, 0)], -1)
+
+    @ti.func
     def sweep_block(self, b: ti.i32, it: ti.i32, c_tri: ti.template(), c_normal: ti.template(),
                     c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
                     b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template(),
                     b_rows: ti.template()):
-        """Body b's block: up to BLOCK_SWEEPS sweeps of its rows' normals, then up to
-        BLOCK_SWEEPS with friction, alternating direction; a phase ends once no row moves its
-        anchor by more than tol·|r|."""
+        """The block of the island rooted at body b: up to BLOCK_SWEEPS sweeps of its rows'
+        normals (COUPLED_SWEEPS for an island of several bodies), then as many with friction,
+        alternating direction; a phase ends once no row moves its anchor by more than tol·|r|
+        (COUPLED_TOL·|r| in an island of several bodies)."""
         tol = ti.static(runtime.tolerance())
+        coupled = self.block_coupled[b] == 1
+        sweeps = ti.select(coupled, COUPLED_SWEEPS, BLOCK_SWEEPS)
+        tol_r = ti.select(coupled, ti.max(tol, COUPLED_TOL), tol)
         first, count = self.block_first[b], self.block_len[b]
         inner = 0
-        while inner < 2 * BLOCK_SWEEPS:
-            friction = inner >= BLOCK_SWEEPS
+        while inner < 2 * sweeps:
+            friction = inner >= sweeps
             converged = True
             for j in range(count):
                 k = b_rows[first + ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
-                moved = self.solve_block_row(k, b, friction, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                             b_lever, b_slip, b_gap, b_k)
-                if moved > tol * b_lever[k].norm():
+                body = self.block_body(k, c_tri)
+                moved = 0.0
+                if body >= 0:
+                    moved = self.solve_block_row(k, body, friction, c_tri, c_normal, c_budget, c_lambda_n,
+                                                 c_lambda_t, b_lever, b_slip, b_gap, b_k)
+                else:
+                    moved = self.solve_pair_row(k, friction, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                                b_lever, b_slip, b_gap, b_k)
+                if moved > tol_r * b_lever[k].norm():
                     converged = False
             inner += 1
             if converged:
-                inner = ti.select(friction, 2 * BLOCK_SWEEPS, ti.max(inner, BLOCK_SWEEPS))
+                inner = ti.select(friction, 2 * sweeps, ti.max(inner, sweeps))
+
+    @ti.func
+    def solve_pair_row(self, k: ti.i32, friction: bool, c_tri: ti.template(), c_normal: ti.template(),
+                       c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                       b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(),
+                       b_k: ti.template()) -> float:
+        """Row k between two rigid bodies projected on both bodies' linearised motions, as
+        solve_block_row does against a static body: d = (Δx_m + Δθ_m × r_m) − (Δx_o + Δθ_o × r_o),
+        gap g = g0 − N·d, slip s = s0 + d_t, K = f_m·K_m + f_o·K_o (f: takes_part). Returns how
+        far the row moved its anchors apart (m)."""
+        moved_by = 0.0
+        tri = c_tri[k]
+        body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
+        r_m = b_lever[k]
+        r_o = r_m + self.state.body_x_prev[body_m] - self.state.body_x_prev[body_o]
+        n = c_normal[k]
+        d = (self.block_dx[body_m] + self.block_dtheta[body_m].cross(r_m)
+             - self.block_dx[body_o] - self.block_dtheta[body_o].cross(r_o))
+        slip = b_slip[k] + d - d.dot(n) * n
+        c = ti.max(ti.min(b_gap[k] - n.dot(d), c_budget[k]), 0.0)
+        lam_n = c_lambda_n[k]
+        k_mat = b_k[k]
+        w = n.dot(k_mat @ n)
+        if (c > 0.0 or lam_n > 0.0) and w > 0.0:
+            push = c / w
+            moved = k_mat @ (push * n)
+            slip += moved - moved.dot(n) * n
+            lam_n += push
+            old_t = c_lambda_t[k]
+            new_t = old_t
+            length = slip.norm()
+            if friction and length > 0.0:
+                t = slip / length
+                new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
+                                         self.pair_friction(tri[0], tri[1]) * lam_n)
+            impulse = push * n - (new_t - old_t)
+            c_lambda_n[k] = lam_n
+            c_lambda_t[k] = new_t
+            moved_anchor = k_mat @ impulse
+            c_budget[k] -= n.dot(moved_anchor)
+            moved_by = moved_anchor.norm()
+            f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
+            self.block_dx[body_m] += f_m * self.model.body_inv_mass[body_m] * impulse
+            self.block_dtheta[body_m] += f_m * (self.block_inv_inertia[body_m] @ r_m.cross(impulse))
+            self.block_dx[body_o] -= f_o * self.model.body_inv_mass[body_o] * impulse
+            self.block_dtheta[body_o] -= f_o * (self.block_inv_inertia[body_o] @ r_o.cross(impulse))
+        return moved_by
 
     @ti.func
     def solve_block_row(self, k: ti.i32, b: ti.i32, friction: bool, c_tri: ti.template(), c_normal: ti.template(),
