@@ -1797,6 +1797,38 @@ class XPBDSolver:
                 inner = ti.select(friction, 2 * sweeps, ti.max(inner, sweeps))
 
     @ti.func
+    def project_block_row(self, k: ti.i32, friction: bool, gap: float, slip: vec3, k_mat: mat3,
+                          c_tri: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
+                          c_lambda_n: ti.template(), c_lambda_t: ti.template()) -> vec3:
+        """The impulse P (N·s, on the moved side) that row k adds in one block sweep, given its
+        gap g and tangential slip s (m) on the linearised motion and K (3×3 inverse mass at the
+        anchor, both bodies'). The normal pushes c = min(g, budget) when c > 0 or while it
+        holds λ_n > 0; friction then cancels the slip left, |λ_t| ≤ μ·λ_n (Müller 2020,
+        Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0 for a row that does nothing."""
+        impulse = vec3(0.0)
+        n = c_normal[k]
+        c = ti.max(ti.min(gap, c_budget[k]), 0.0)
+        lam_n = c_lambda_n[k]
+        w = n.dot(k_mat @ n)
+        if (c > 0.0 or lam_n > 0.0) and w > 0.0:
+            push = c / w
+            moved = k_mat @ (push * n)
+            slip_left = slip + (moved - moved.dot(n) * n)
+            lam_n += push
+            old_t = c_lambda_t[k]
+            new_t = old_t
+            length = slip_left.norm()
+            if friction and length > 0.0:
+                t = slip_left / length
+                new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
+                                         self.pair_friction(c_tri[k][0], c_tri[k][1]) * lam_n)
+            impulse = push * n - (new_t - old_t)
+            c_lambda_n[k] = lam_n
+            c_lambda_t[k] = new_t
+            c_budget[k] -= n.dot(k_mat @ impulse)
+        return impulse
+
+    @ti.func
     def solve_pair_row(self, k: ti.i32, friction: bool, c_tri: ti.template(), c_normal: ti.template(),
                        c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
                        b_lever: ti.template(), b_slip: ti.template(), b_gap: ti.template(),
@@ -1814,28 +1846,11 @@ class XPBDSolver:
         d = (self.block_dx[body_m] + self.block_dtheta[body_m].cross(r_m)
              - self.block_dx[body_o] - self.block_dtheta[body_o].cross(r_o))
         slip = b_slip[k] + d - d.dot(n) * n
-        c = ti.max(ti.min(b_gap[k] - n.dot(d), c_budget[k]), 0.0)
-        lam_n = c_lambda_n[k]
         k_mat = b_k[k]
-        w = n.dot(k_mat @ n)
-        if (c > 0.0 or lam_n > 0.0) and w > 0.0:
-            push = c / w
-            moved = k_mat @ (push * n)
-            slip += moved - moved.dot(n) * n
-            lam_n += push
-            old_t = c_lambda_t[k]
-            new_t = old_t
-            length = slip.norm()
-            if friction and length > 0.0:
-                t = slip / length
-                new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
-                                         self.pair_friction(tri[0], tri[1]) * lam_n)
-            impulse = push * n - (new_t - old_t)
-            c_lambda_n[k] = lam_n
-            c_lambda_t[k] = new_t
-            moved_anchor = k_mat @ impulse
-            c_budget[k] -= n.dot(moved_anchor)
-            moved_by = moved_anchor.norm()
+        impulse = self.project_block_row(k, friction, b_gap[k] - n.dot(d), slip, k_mat, c_tri, c_normal, c_budget,
+                                         c_lambda_n, c_lambda_t)
+        moved_by = (k_mat @ impulse).norm()
+        if moved_by > 0.0:
             f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
             self.block_dx[body_m] += f_m * self.model.body_inv_mass[body_m] * impulse
             self.block_dtheta[body_m] += f_m * (self.block_inv_inertia[body_m] @ r_m.cross(impulse))
@@ -1852,9 +1867,8 @@ class XPBDSolver:
         solve_contact_normal and solve_contact_friction do on the real pose. With d the moved
         anchor's displacement relative to the other since the linearisation, the gap is
         g = g0 − N·d and the tangential slip s = s0 + d_t; an impulse P on the moved side adds
-        K·P to d (K the 3×3 inverse mass at the anchor, rigid.inv_mass_matrix_world). The
-        normal pushes c = min(g, budget) when c > 0; friction then cancels the slip left,
-        |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27). Returns how far the row moved its anchor (m)."""
+        K·P to d (K the 3×3 inverse mass at the anchor, rigid.inv_mass_matrix_world), P from
+        project_block_row. Returns how far the row moved its anchor (m)."""
         moved_by = 0.0
         tri = c_tri[k]
         sign = ti.select(self.model.tri_body[tri[0]] == b, 1.0, -1.0)
@@ -1862,27 +1876,11 @@ class XPBDSolver:
         n = c_normal[k]
         d = sign * (self.block_dx[b] + self.block_dtheta[b].cross(r))
         slip = b_slip[k] + d - d.dot(n) * n
-        c = ti.max(ti.min(b_gap[k] - n.dot(d), c_budget[k]), 0.0)
-        lam_n = c_lambda_n[k]
-        if c > 0.0 or lam_n > 0.0:
-            k_mat = b_k[k]
-            push = c / n.dot(k_mat @ n)
-            moved = k_mat @ (push * n)
-            slip += moved - moved.dot(n) * n
-            lam_n += push
-            old_t = c_lambda_t[k]
-            new_t = old_t
-            length = slip.norm()
-            if friction and length > 0.0:
-                t = slip / length
-                new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
-                                         self.pair_friction(tri[0], tri[1]) * lam_n)
-            impulse = push * n - (new_t - old_t)
-            c_lambda_n[k] = lam_n
-            c_lambda_t[k] = new_t
-            moved_anchor = k_mat @ impulse
-            c_budget[k] -= n.dot(moved_anchor)
-            moved_by = moved_anchor.norm()
+        k_mat = b_k[k]
+        impulse = self.project_block_row(k, friction, b_gap[k] - n.dot(d), slip, k_mat, c_tri, c_normal, c_budget,
+                                         c_lambda_n, c_lambda_t)
+        moved_by = (k_mat @ impulse).norm()
+        if moved_by > 0.0:
             body_impulse = sign * impulse
             self.block_dx[b] += self.model.body_inv_mass[b] * body_impulse
             self.block_dtheta[b] += self.block_inv_inertia[b] @ r.cross(body_impulse)
