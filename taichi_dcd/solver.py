@@ -1800,11 +1800,12 @@ class XPBDSolver:
     def project_block_row(self, k: ti.i32, friction: bool, gap: float, slip: vec3, k_mat: mat3,
                           c_tri: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
                           c_lambda_n: ti.template(), c_lambda_t: ti.template()) -> vec3:
-        """The impulse P (N·s, on the moved side) that row k adds in one block sweep, given its
-        gap g and tangential slip s (m) on the linearised motion and K (3×3 inverse mass at the
-        anchor, both bodies'). The normal pushes c = min(g, budget) when c > 0 or while it
-        holds λ_n > 0; friction then cancels the slip left, |λ_t| ≤ μ·λ_n (Müller 2020,
-        Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0 for a row that does nothing."""
+        """The positional impulse P (kg·m, on the moved side) that row k adds in one block
+        sweep, given its gap g and tangential slip s (m) on the linearised motion and K (3×3
+        inverse mass at the anchor, both bodies'). The normal pushes c = min(g, budget) when
+        c > 0 or while it holds λ_n > 0; friction then cancels the slip left, |λ_t| ≤ μ·λ_n
+        (Müller 2020, Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0 for a row that does
+        nothing."""
         impulse = vec3(0.0)
         n = c_normal[k]
         c = ti.max(ti.min(gap, c_budget[k]), 0.0)
@@ -1837,7 +1838,6 @@ class XPBDSolver:
         solve_block_row does against a static body: d = (Δx_m + Δθ_m × r_m) − (Δx_o + Δθ_o × r_o),
         gap g = g0 − N·d, slip s = s0 + d_t, K = f_m·K_m + f_o·K_o (f: takes_part). Returns how
         far the row moved its anchors apart (m)."""
-        moved_by = 0.0
         tri = c_tri[k]
         body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
         r_m = b_lever[k]
@@ -1869,7 +1869,6 @@ class XPBDSolver:
         g = g0 − N·d and the tangential slip s = s0 + d_t; an impulse P on the moved side adds
         K·P to d (K the 3×3 inverse mass at the anchor, rigid.inv_mass_matrix_world), P from
         project_block_row. Returns how far the row moved its anchor (m)."""
-        moved_by = 0.0
         tri = c_tri[k]
         sign = ti.select(self.model.tri_body[tri[0]] == b, 1.0, -1.0)
         r = b_lever[k]
