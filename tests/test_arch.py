@@ -1,0 +1,32 @@
+"""`--arch cuda`: the same run as on the CPU where a GPU is present, a one-line error where not."""
+
+import json
+
+import numpy as np
+import trimesh
+from cli_helpers import assert_one_line_error, run_cli
+
+RUN = ("run", "spike-in-crack", "--frames", "40", "--no-frames", "--quiet")
+
+
+def test_cuda_run_gives_the_cpu_result_or_says_cuda_is_missing(tmp_path):
+    """On a machine with a CUDA GPU, 40 frames of `spike-in-crack` on `--arch cuda` end with
+    the spike where the CPU puts it (within 1e-6 m: the kernels are the same, the rounding
+    order of a GPU's arithmetic may differ) and the same depths. Without one (CI), the run
+    stops before writing anything: one line naming the arch, exit status 2, no output folder."""
+    cuda = run_cli(*RUN, "--arch", "cuda", "--out", str(tmp_path / "cuda"), cwd=tmp_path, timeout=900)
+    if "could not start on arch 'cuda'" in cuda.stderr:
+        assert_one_line_error(cuda, 2, "cuda")
+        assert not (tmp_path / "cuda").exists()
+        return
+    assert cuda.returncode == 0, cuda.stderr
+    cpu = run_cli(*RUN, "--arch", "cpu", "--out", str(tmp_path / "cpu"), cwd=tmp_path)
+    assert cpu.returncode == 0, cpu.stderr
+    on_gpu = json.loads((tmp_path / "cuda" / "metrics.json").read_text())
+    on_cpu = json.loads((tmp_path / "cpu" / "metrics.json").read_text())
+    assert on_gpu["complete"] and on_gpu["frames"] == on_cpu["frames"]
+    for key in ("max_penetration_depth", "final_penetration_depth"):
+        assert abs(on_gpu[key] - on_cpu[key]) <= 1e-6, key
+    spike_gpu = trimesh.load(tmp_path / "cuda" / "final" / "dropped_spike.obj", process=False).vertices
+    spike_cpu = trimesh.load(tmp_path / "cpu" / "final" / "dropped_spike.obj", process=False).vertices
+    assert np.abs(spike_gpu - spike_cpu).max() <= 1e-6
