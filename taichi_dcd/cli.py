@@ -230,6 +230,17 @@ def _cmd_sweep(args) -> int:
     except SceneError as exc:
         print(f"taichi-dcd: error: {exc}", file=sys.stderr)
         return 2
+    if args.arch != "cpu" and not args.ray:
+        # Every run would fail alike in its own process; say so once, before any starts. (On
+        # a Ray cluster the workers' machines, not this one, need the GPU.)
+        from . import runtime
+
+        try:
+            runtime.init(arch=args.arch)
+        except RuntimeError as exc:
+            print(f"taichi-dcd: error: {exc}", file=sys.stderr)
+            return 2
+        runtime.reset()
     runs = sweep_runs(list(dict.fromkeys(scenes)), substeps, iterations, precisions)
     if not args.quiet:
         print(f"taichi-dcd: sweeping {len(runs)} runs into {args.out}", file=sys.stderr)
@@ -248,7 +259,9 @@ def _cmd_sweep(args) -> int:
     print(f"sweep: {len(rows)} runs, {passed} passed the contact test, {len(failed)} failed to run; "
           f"{args.out}/sweep.csv, {args.out}/pareto.png")
     best = recommend(rows)
-    if best:
+    if best and best["cost"] == float("inf"):
+        print("recommended: none (no setting ran every scene to the end)")
+    elif best:
         print(f"recommended: --substeps {best['substeps']} --iterations {best['iterations']} --precision "
               f"{best['precision']} (passes {best['passed']} of {best['scenes']} scenes, "
               f"{best['cost']:.3g} s wall per simulated second summed over them)")

@@ -30,3 +30,18 @@ def test_cuda_run_gives_the_cpu_result_or_says_cuda_is_missing(tmp_path):
     spike_gpu = trimesh.load(tmp_path / "cuda" / "final" / "dropped_spike.obj", process=False).vertices
     spike_cpu = trimesh.load(tmp_path / "cpu" / "final" / "dropped_spike.obj", process=False).vertices
     assert np.abs(spike_gpu - spike_cpu).max() <= 1e-6
+
+
+def test_cuda_sweep_runs_or_stops_before_any_run(tmp_path):
+    """`sweep --arch cuda` without a GPU stops before starting a run: one line naming the
+    arch, exit status 2, no output folder (it used to run every setting into the same
+    error and recommend one of them). With a GPU the one run completes."""
+    out = tmp_path / "sweep"
+    result = run_cli("sweep", "spike-in-crack", "--substeps", "2", "--iterations", "2", "--frames", "3",
+                     "--arch", "cuda", "--quiet", "--out", str(out), cwd=tmp_path, timeout=900)
+    if "could not start on arch 'cuda'" in result.stderr:
+        assert_one_line_error(result, 2, "cuda")
+        assert not out.exists()
+        return
+    assert result.returncode == 0, result.stderr
+    assert (out / "sweep.csv").read_text().count("\n") == 2
