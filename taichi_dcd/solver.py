@@ -1797,18 +1797,20 @@ class XPBDSolver:
                 inner = ti.select(friction, 2 * sweeps, ti.max(inner, sweeps))
 
     @ti.func
-    def project_block_row(self, k: ti.i32, friction: bool, gap: float, slip: vec3, k_mat: mat3,
-                          c_tri: ti.template(), c_normal: ti.template(), c_budget: ti.template(),
-                          c_lambda_n: ti.template(), c_lambda_t: ti.template()) -> vec3:
+    def project_block_row(self, k: ti.i32, friction: bool, d: vec3, c_tri: ti.template(), c_normal: ti.template(),
+                          c_budget: ti.template(), c_lambda_n: ti.template(), c_lambda_t: ti.template(),
+                          b_slip: ti.template(), b_gap: ti.template(), b_k: ti.template()) -> vec3:
         """The positional impulse P (kg·m, on the moved side) that row k adds in one block
-        sweep, given its gap g and tangential slip s (m) on the linearised motion and K (3×3
-        inverse mass at the anchor, both bodies'). The normal pushes c = min(g, budget) when
-        c > 0 or while it holds λ_n > 0; friction then cancels the slip left, |λ_t| ≤ μ·λ_n
-        (Müller 2020, Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0 for a row that does
-        nothing."""
+        sweep, its moved anchor displaced by d (m) relative to the other since the
+        linearisation: gap g = g0 − N·d, tangential slip s = s0 + d_t, K (3×3 inverse mass at
+        the anchor, both bodies') from b_k. The normal pushes c = min(g, budget) when c > 0 or
+        while it holds λ_n > 0; friction then cancels the slip left, |λ_t| ≤ μ·λ_n (Müller
+        2020, Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0 for a row that does nothing."""
         impulse = vec3(0.0)
         n = c_normal[k]
-        c = ti.max(ti.min(gap, c_budget[k]), 0.0)
+        slip = b_slip[k] + d - d.dot(n) * n
+        k_mat = b_k[k]
+        c = ti.max(ti.min(b_gap[k] - n.dot(d), c_budget[k]), 0.0)
         lam_n = c_lambda_n[k]
         w = n.dot(k_mat @ n)
         if (c > 0.0 or lam_n > 0.0) and w > 0.0:
@@ -1842,14 +1844,11 @@ class XPBDSolver:
         body_m, body_o = self.model.tri_body[tri[0]], self.model.tri_body[tri[1]]
         r_m = b_lever[k]
         r_o = r_m + self.state.body_x_prev[body_m] - self.state.body_x_prev[body_o]
-        n = c_normal[k]
         d = (self.block_dx[body_m] + self.block_dtheta[body_m].cross(r_m)
              - self.block_dx[body_o] - self.block_dtheta[body_o].cross(r_o))
-        slip = b_slip[k] + d - d.dot(n) * n
-        k_mat = b_k[k]
-        impulse = self.project_block_row(k, friction, b_gap[k] - n.dot(d), slip, k_mat, c_tri, c_normal, c_budget,
-                                         c_lambda_n, c_lambda_t)
-        moved_by = (k_mat @ impulse).norm()
+        impulse = self.project_block_row(k, friction, d, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                         b_slip, b_gap, b_k)
+        moved_by = (b_k[k] @ impulse).norm()
         if moved_by > 0.0:
             f_m, f_o = self.takes_part(tri[0], tri[1]), self.takes_part(tri[1], tri[0])
             self.block_dx[body_m] += f_m * self.model.body_inv_mass[body_m] * impulse
@@ -1872,13 +1871,10 @@ class XPBDSolver:
         tri = c_tri[k]
         sign = ti.select(self.model.tri_body[tri[0]] == b, 1.0, -1.0)
         r = b_lever[k]
-        n = c_normal[k]
         d = sign * (self.block_dx[b] + self.block_dtheta[b].cross(r))
-        slip = b_slip[k] + d - d.dot(n) * n
-        k_mat = b_k[k]
-        impulse = self.project_block_row(k, friction, b_gap[k] - n.dot(d), slip, k_mat, c_tri, c_normal, c_budget,
-                                         c_lambda_n, c_lambda_t)
-        moved_by = (k_mat @ impulse).norm()
+        impulse = self.project_block_row(k, friction, d, c_tri, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                         b_slip, b_gap, b_k)
+        moved_by = (b_k[k] @ impulse).norm()
         if moved_by > 0.0:
             body_impulse = sign * impulse
             self.block_dx[b] += self.model.body_inv_mass[b] * body_impulse
