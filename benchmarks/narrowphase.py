@@ -4,7 +4,10 @@ Compares, on the same seeded random pairs (vertices uniform in the unit cube,
 about 28% intersecting):
 - the plain per-pair NumPy reference (`taichi_dcd.reference`), on a subset;
 - our full method (`taichi_dcd.collide_triangle_pairs`: Möller, candidates,
-  Eq. 6, normal and point, input checks included) in f32 and f64;
+  Eq. 6, normal and point, input checks and fresh output arrays included) in f32 and
+  f64, which on CPU computes a batch of pairs at once in SIMD lanes;
+- the same method one pair per loop iteration, the code path the solver runs inside
+  its kernels (`narrowphase._collide_pairs_kernel`, kernel alone, one thread);
 - Warp's `wp.intersect_tri_tri` on CPU in f32 and f64 when warp-lang is installed
   (a yes/no Möller test only, so the comparison is conservative for us; Warp runs
   a CPU launch on one thread).
@@ -21,6 +24,7 @@ from common import machine_line
 
 import taichi_dcd
 from taichi_dcd import runtime
+from taichi_dcd.narrowphase import _collide_pairs_kernel
 from taichi_dcd.reference import collide_triangle_pairs_reference
 
 
@@ -39,6 +43,16 @@ def bench_ours(a, b, precision: str, threads: int | None, repeat: int) -> float:
     dtype = runtime.real_dtype()
     a_t, b_t = a.astype(dtype), b.astype(dtype)
     return best_rate(lambda: taichi_dcd.collide_triangle_pairs(a_t, b_t), len(a), repeat)
+
+
+def bench_one_pair_path(a, b, precision: str, repeat: int) -> float:
+    runtime.init(precision=precision, cpu_threads=1)
+    dtype = runtime.real_dtype()
+    a_t, b_t = a.astype(dtype), b.astype(dtype)
+    n = len(a)
+    out = (np.empty(n, np.int8), np.empty(n, dtype), np.empty((n, 3), dtype), np.empty(n, np.int8),
+           np.empty((n, 3), dtype))
+    return best_rate(lambda: _collide_pairs_kernel(a_t, b_t, *out), n, repeat)
 
 
 def bench_warp(a, b, precision: str, repeat: int) -> float | None:
@@ -97,6 +111,8 @@ def main() -> None:
         for threads in (1, all_threads):
             rows.append((f"taichi_dcd full method", precision, str(threads),
                          bench_ours(a, b, precision, threads, args.repeat)))
+        rows.append(("  one pair per iteration (kernel)", precision, "1",
+                     bench_one_pair_path(a, b, precision, args.repeat)))
     runtime.init(precision="f64")
     for precision in ("f32", "f64"):
         rate = bench_warp(a, b, precision, args.repeat)

@@ -188,6 +188,12 @@ def precision() -> str:
     return _settings["precision"]
 
 
+def arch() -> str:
+    """The arch Taichi runs on ("cpu" or "cuda")."""
+    ensure_init()
+    return _settings["arch"]
+
+
 def real_type():
     """Taichi float type of the kernels (ti.f64 or ti.f32), for allocating arrays."""
     return ti.f64 if precision() == "f64" else ti.f32
