@@ -228,6 +228,18 @@ def deepest_candidate(p0, p1, p2, s_p, q0, q1, q2, n_q, s_q, cos_pq, tol: float,
 
 
 @ti.func
+def raw_planes(a0, a1, a2, b0, b1, b2):
+    """The triangles' unnormalised normals na_raw, nb_raw and each one's vertex distances
+    to the other's plane in units of the other's |n_raw|: s_a (A's to B's plane), s_b.
+    Unless both s_a and s_b straddle zero (`straddles`), the pair does not intersect."""
+    nb_raw = cross(sub(b1, b0), sub(b2, b0))
+    na_raw = cross(sub(a1, a0), sub(a2, a0))
+    s_a = make3(dot(nb_raw, sub(a0, b0)), dot(nb_raw, sub(a1, b0)), dot(nb_raw, sub(a2, b0)))
+    s_b = make3(dot(na_raw, sub(b0, a0)), dot(na_raw, sub(b1, a0)), dot(na_raw, sub(b2, a0)))
+    return na_raw, nb_raw, s_a, s_b
+
+
+@ti.func
 def collide_pair_lanes(a0, a1, a2, b0, b1, b2):
     """The unified DCD test of triangles A = (a0, a1, a2) and B = (b0, b1, b2), points
     with scalar components (vec3) or components of lanes (see `lanes`).
@@ -243,10 +255,7 @@ def collide_pair_lanes(a0, a1, a2, b0, b1, b2):
     # distances can only remove a straddle, never create one, so most pairs leave
     # after two cross products and six dot products, before any tolerance work, and
     # only intersecting pairs pay for normalising.
-    nb_raw = cross(sub(b1, b0), sub(b2, b0))
-    na_raw = cross(sub(a1, a0), sub(a2, a0))
-    s_a = make3(dot(nb_raw, sub(a0, b0)), dot(nb_raw, sub(a1, b0)), dot(nb_raw, sub(a2, b0)))
-    s_b = make3(dot(na_raw, sub(b0, a0)), dot(na_raw, sub(b1, a0)), dot(na_raw, sub(b2, a0)))
+    na_raw, nb_raw, s_a, s_b = raw_planes(a0, a1, a2, b0, b1, b2)
     zero = fill(s_a.x, 0.0)
     hit = zero > 0.0
     depth = zero
@@ -412,6 +421,16 @@ def _collide_pairs_kernel(
 # one AVX-512 register (8 f64 or 16 f32 lanes; LLVM splits it in two on AVX2 machines).
 # Measured per pair at f64: 4 lanes 61 ns, 8 lanes 56 ns, 16 lanes 77 ns.
 PACKET_BYTES = 64
+# Batches whose rows `_collide_packets_kernel` sorts by whether they need the whole test.
+WINDOW_BATCHES = 16
+
+
+@ti.func
+def load_lanes(a: ti.template(), b: ti.template(), rows: ti.template()):
+    """Triangles A and B of the pairs in `rows` (one per lane) as points of lanes."""
+    return [[make3(ti.Vector([m[row, v, 0] for row in rows]), ti.Vector([m[row, v, 1] for row in rows]),
+                   ti.Vector([m[row, v, 2] for row in rows]))
+             for v in ti.static(range(3))] for m in ti.static((a, b))]
 
 
 @ti.kernel
@@ -424,50 +443,75 @@ def _collide_packets_kernel(
     side: ti.types.ndarray(ndim=1),
     point: ti.types.ndarray(ndim=2),
 ):
-    """The unified DCD test (Eq. 6 and its gradient) on a batch of rows of a and b at a
-    time, one row per lane (PACKET_BYTES). Compiled with Taichi's matrices kept as LLVM vectors (see
-    `_launch_packets`); only scalars are loaded and stored, so no vector access needs an
-    alignment the arrays may not have."""
+    """The unified DCD test (Eq. 6 and its gradient) per row of a and b, on a batch of rows
+    at a time, one row per lane (PACKET_BYTES). Compiled with Taichi's matrices kept as LLVM
+    vectors (see `_launch_packets`); only scalars are loaded and stored, so no vector access
+    needs an alignment the arrays may not have.
+
+    A batch pays for the candidate searches of all its lanes when one lane needs them, so
+    the rows of a window of WINDOW_BATCHES batches are sorted first. Pass 1, every row: the
+    no-contact outputs (hit = -1 for a non-finite coordinate), and the rows whose distances
+    straddle both planes go on the window's list. Pass 2, the listed rows, now batched with
+    each other (their data still in cache): the whole test, whose outputs replace pass 1's."""
     n = a.shape[0]
     lanes = ti.static(PACKET_BYTES // np.dtype(runtime.real_dtype()).itemsize)
-    for packet in range((n + lanes - 1) // lanes):
-        first = packet * lanes
-        rows = [ti.min(first + lane, n - 1) for lane in ti.static(range(lanes))]
-        tri = [[make3(ti.Vector([m[row, v, 0] for row in rows]), ti.Vector([m[row, v, 1] for row in rows]),
-                      ti.Vector([m[row, v, 2] for row in rows]))
-                for v in ti.static(range(3))] for m in ti.static((a, b))]
-        # x·0 is NaN exactly for a NaN or infinite x (fast_math is off, so it is not folded).
-        zeros = tri[0][0].x * 0.0
-        for t in ti.static(range(2)):
-            for v in ti.static(range(3)):
+    window = ti.static(lanes * WINDOW_BATCHES)
+    for window_index in range((n + window - 1) // window):
+        listed = ti.Vector([0] * window, dt=ti.i32)
+        listed_count = 0
+        for batch in range(WINDOW_BATCHES):
+            first = window_index * window + batch * lanes
+            rows = [ti.min(first + lane, n - 1) for lane in ti.static(range(lanes))]
+            tri = load_lanes(a, b, rows)
+            # x·0 is NaN exactly for a NaN or infinite x (fast_math is off, so it is not folded).
+            zeros = tri[0][0].x * 0.0
+            for t in ti.static(range(2)):
+                for v in ti.static(range(3)):
+                    for c in ti.static(range(3)):
+                        zeros += at(tri[t][v], c) * 0.0
+            finite = zeros == 0.0
+            _, _, s_a, s_b = raw_planes(tri[0][0], tri[0][1], tri[0][2], tri[1][0], tri[1][1], tri[1][2])
+            finite_ints = lane_ints(finite)
+            to_list = lane_ints(finite & straddles(s_a) & straddles(s_b))
+            for lane in ti.static(range(lanes)):
+                row = first + lane
+                if row < n:
+                    hit[row] = ti.select(finite_ints[lane] != 0, ti.i8(0), ti.i8(-1))
+                    depth[row] = 0.0
+                    side[row] = ti.i8(-1)
+                    for c in ti.static(range(3)):
+                        normal[row, c] = 0.0
+                        point[row, c] = 0.0
+                    listed[listed_count] = row
+                    listed_count += to_list[lane]
+        for batch in range((listed_count + lanes - 1) // lanes):
+            first = batch * lanes
+            # A last, partial batch repeats its last row: the same outputs, written again.
+            rows = [listed[ti.min(first + lane, listed_count - 1)] for lane in ti.static(range(lanes))]
+            tri = load_lanes(a, b, rows)
+            h, d, nrm, s, pt = collide_pair_lanes(tri[0][0], tri[0][1], tri[0][2], tri[1][0], tri[1][1], tri[1][2])
+            hit_ints = lane_ints(h)
+            for lane in ti.static(range(lanes)):
+                row = rows[lane]
+                hit[row] = ti.cast(hit_ints[lane], ti.i8)
+                depth[row] = d[lane]
+                side[row] = ti.cast(s[lane], ti.i8)
                 for c in ti.static(range(3)):
-                    zeros += at(tri[t][v], c) * 0.0
-        finite = lane_ints(zeros == 0.0)
-        h, d, nrm, s, pt = collide_pair_lanes(tri[0][0], tri[0][1], tri[0][2], tri[1][0], tri[1][1], tri[1][2])
-        hit_ints = lane_ints(h)
-        for lane in ti.static(range(lanes)):
-            row = first + lane
-            if row < n:
-                ok = finite[lane] != 0
-                hit[row] = ti.select(ok, ti.cast(hit_ints[lane], ti.i8), ti.i8(-1))
-                depth[row] = ti.select(ok, d[lane], 0.0)
-                side[row] = ti.select(ok, ti.cast(s[lane], ti.i8), ti.i8(-1))
-                for c in ti.static(range(3)):
-                    normal[row, c] = ti.select(ok, at(nrm, c)[lane], 0.0)
-                    point[row, c] = ti.select(ok, at(pt, c)[lane], 0.0)
+                    normal[row, c] = at(nrm, c)[lane]
+                    point[row, c] = at(pt, c)[lane]
 
 
-def _launch_packets(*args) -> None:
-    """Run `_collide_packets_kernel` compiled with `real_matrix_scalarize` off: Taichi then
-    leaves its vectors to LLVM as vector types, and the lanes become SIMD instructions
-    (with it on, every kernel is scalar code). Only this kernel is compiled so: others
-    load vec3 ndarray elements, which that mode turns into vector loads that need an
-    alignment the arrays do not have (they crash)."""
+def _launch_packets(a, b, hit, depth, normal, side, point) -> None:
+    """Run `_collide_packets_kernel` on n rows, compiled with `real_matrix_scalarize` off:
+    Taichi then leaves its vectors to LLVM as vector types, and the lanes become SIMD
+    instructions (with it on, every kernel is scalar code). Only this kernel is compiled
+    so: others load vec3 ndarray elements, which that mode turns into vector loads that
+    need an alignment the arrays do not have (they crash)."""
     config = ti.lang.impl.current_cfg()
     scalarize = config.real_matrix_scalarize
     config.real_matrix_scalarize = False
     try:
-        _collide_packets_kernel(*args)
+        _collide_packets_kernel(a, b, hit, depth, normal, side, point)
     finally:
         config.real_matrix_scalarize = scalarize
 

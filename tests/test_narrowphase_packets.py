@@ -1,7 +1,8 @@
 """The batch API's SIMD lanes against the one-pair code path the solver runs, bit for bit.
 
 On CPU `collide_triangle_pairs` computes several pairs at once, one per lane of a vector
-(`narrowphase._collide_packets_kernel`, compiled with Taichi's vectors left to LLVM). The
+(`narrowphase._collide_packets_kernel`, compiled with Taichi's vectors left to LLVM), after
+sorting the rows of each window by whether they need more than Möller's first test. The
 solver calls `collide_triangle_pair` on one pair inside its kernels. Both are the same
 Taichi functions, so every output must agree to the last bit, zeros' signs included, and
 however the pairs fall into batches (a last, partial batch included).
@@ -12,7 +13,7 @@ import pytest
 
 import taichi_dcd
 from taichi_dcd import runtime
-from taichi_dcd.narrowphase import PACKET_BYTES, _collide_pairs_kernel
+from taichi_dcd.narrowphase import PACKET_BYTES, WINDOW_BATCHES, _collide_pairs_kernel
 
 from conftest import random_pairs
 
@@ -59,12 +60,15 @@ def test_lanes_give_the_one_pair_results_bit_for_bit(precision, request):
 
 
 def test_every_batch_size_and_offset_gives_the_same_rows(f64):
-    """A pair's result does not depend on which lane of which batch it lands in, nor on
-    the clamped rows that fill the last batch."""
+    """A pair's result does not depend on which lane of which batch it lands in, on which
+    other rows of its window need the whole test, nor on the clamped rows that fill the
+    last batch."""
     lanes = PACKET_BYTES // 8
-    a, b = varied_pairs(60, seed=7)
+    window = lanes * WINDOW_BATCHES
+    a, b = varied_pairs(2 * window // 4 + 10, seed=7)
     whole = taichi_dcd.collide_triangle_pairs(a, b)
-    for start, stop in [(0, 1), (3, 3 + lanes - 1), (5, 5 + lanes), (11, 11 + lanes + 1), (1, 240)]:
+    for start, stop in [(0, 1), (3, 3 + lanes - 1), (5, 5 + lanes), (11, 11 + lanes + 1), (1, window + 1),
+                        (window - 9, 2 * window + 17), (0, len(a))]:
         part = taichi_dcd.collide_triangle_pairs(a[start:stop], b[start:stop])
         assert part.depth.tobytes() == whole.depth[start:stop].tobytes()
         assert part.point.tobytes() == whole.point[start:stop].tobytes()
