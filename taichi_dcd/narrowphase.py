@@ -506,7 +506,8 @@ def _launch_packets(a, b, hit, depth, normal, side, point) -> None:
     Taichi then leaves its vectors to LLVM as vector types, and the lanes become SIMD
     instructions (with it on, every kernel is scalar code). Only this kernel is compiled
     so: others load vec3 ndarray elements, which that mode turns into vector loads that
-    need an alignment the arrays do not have (they crash)."""
+    need an alignment the arrays do not have (they crash). Taichi's offline cache leaves the
+    flag out of its key, so the kernel is launched through here only."""
     config = ti.lang.impl.current_cfg()
     scalarize = config.real_matrix_scalarize
     config.real_matrix_scalarize = False
