@@ -6,16 +6,16 @@ with scalar components and real branches; the batch API runs it on W pairs at a 
 lane vectors, which LLVM turns into SIMD instructions. There a branch is taken when any
 lane needs it (`any_lane`) and its results are kept only for the lanes that do (`keep`).
 A point of scalars is a ti.Vector, a point of lanes a ti.Struct with fields x, y (and z):
-both can be reassigned inside Taichi's branches, which a Python tuple cannot.
-
-Lanes are compiled with Taichi's `real_matrix_scalarize` off, where Taichi 1.7 gets some
-operations on lanes wrong (checked one by one): a lane read from a vector of booleans,
-`.any()`, unary minus and `ti.abs`. Hence `lane_ints` before reading a boolean lane, and
-`any_lane`, `negate`, `absolute` here; comparisons, &, |, ti.select, min, max, sqrt and
-the four operations are right. Each
+both can be reassigned inside Taichi's branches, which a Python tuple cannot. Each
 operation keeps the evaluation order of the `ti.Vector` method it stands for (dot =
 (x·x' + y·y') + z·z', Taichi's cross and min/max), so a scalar point gives the same bits
 as the vector code, and lane l of a batch the same bits as that pair alone.
+
+Lanes are compiled with Taichi's `real_matrix_scalarize` off, where Taichi 1.7 gets some
+operations on lanes wrong (checked one by one): reading one lane of a vector of booleans
+(made by a comparison, & or |), `.any()`, unary minus and `ti.abs`. Hence `lane_ints`
+before reading a boolean lane, and `any_lane`, `negate` and `absolute` here. Comparisons,
+& and | consumed by ti.select, min, max, sqrt and the four operations are right.
 """
 
 import taichi as ti

@@ -172,7 +172,7 @@ def deepest_candidate(p0, p1, p2, s_p, q0, q1, q2, n_q, s_q, cos_pq, tol: float,
         depth_v, point_v = deeper(depth_v, point_v, ti.select(inside, negate(at(s_p, i)), 0.0), pts_p[i])
 
     # Points x of P's plane reached from Q's vertices along N_Q (Eq. 5):
-    # x = q_j + t·N_Q with N_P·(x - p0) = 0, so t = -at(s_q, j)/cos_pq and the depth
+    # x = q_j + t·N_Q with N_P·(x - p0) = 0, so t = -s_q[j]/cos_pq and the depth
     # is -t. x is inside P exactly when q_j is inside P's image.
     eq5_defined = absolute(cos_pq) > tol
     inv_cos = 1.0 / ti.select(eq5_defined, cos_pq, 1.0)
@@ -419,9 +419,10 @@ def _collide_pairs_kernel(
 
 # Bytes of one coordinate over all the pairs of a SIMD batch of `_collide_packets_kernel`:
 # one AVX-512 register (8 f64 or 16 f32 lanes; LLVM splits it in two on AVX2 machines).
-# Measured per pair at f64: 4 lanes 61 ns, 8 lanes 56 ns, 16 lanes 77 ns.
+# Measured per f64 pair on random pairs: 4 lanes 49 ns, 8 lanes 44 ns.
 PACKET_BYTES = 64
-# Batches whose rows `_collide_packets_kernel` sorts by whether they need the whole test.
+# Batches whose rows `_collide_packets_kernel` sorts by whether they need the whole test
+# (per f64 pair: windows of 8 batches 46 ns, 16 44 ns, 32 44 ns, 64 45 ns).
 WINDOW_BATCHES = 16
 
 
@@ -482,6 +483,7 @@ def _collide_packets_kernel(
                     for c in ti.static(range(3)):
                         normal[row, c] = 0.0
                         point[row, c] = 0.0
+                    # Always written, kept only when counted: no branch on a coin flip.
                     listed[listed_count] = row
                     listed_count += to_list[lane]
         for batch in range((listed_count + lanes - 1) // lanes):
