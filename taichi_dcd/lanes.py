@@ -4,7 +4,8 @@ triangle pairs computed at once, lane by lane.
 The narrow phase is written once against these functions. The solver runs it on one pair
 with scalar components and real branches; the batch API runs it on W pairs at a time with
 lane vectors, which LLVM turns into SIMD instructions. There a branch is taken when any
-lane needs it (`any_lane`) and its results are kept only for the lanes that do (`keep`).
+lane needs it (`any_lane`) and its results are kept only for the lanes that do (ti.select,
+`keep3`).
 A point of scalars is a ti.Vector, a point of lanes a ti.Struct with fields x, y (and z):
 both can be reassigned inside Taichi's branches, which a Python tuple cannot. Each
 operation keeps the evaluation order of the `ti.Vector` method it stands for (dot =
@@ -65,12 +66,6 @@ def absolute(x):
 
 
 @ti.func
-def keep(cond, new, old):
-    """new where cond holds, old elsewhere, lane by lane."""
-    return ti.select(cond, new, old)
-
-
-@ti.func
 def fill(like, value):
     """value in every lane of `like` (a scalar when `like` is one)."""
     return ti.select(like == like, value, value)
@@ -107,8 +102,8 @@ def at(p, i: ti.template()):
 
 @ti.func
 def keep3(cond, new, old):
-    """`keep` for points."""
-    return make3(keep(cond, new.x, old.x), keep(cond, new.y, old.y), keep(cond, new.z, old.z))
+    """new where cond holds, old elsewhere, lane by lane: ti.select for points."""
+    return make3(ti.select(cond, new.x, old.x), ti.select(cond, new.y, old.y), ti.select(cond, new.z, old.z))
 
 
 @ti.func

@@ -54,7 +54,7 @@ import taichi as ti
 from . import runtime
 from .geometry import (has_area, lex_compare, longest_edge_sq, plane_frame, snap_to_zero, straddles,
                        strictly_inside_2d, to_frame, vec3)
-from .lanes import (absolute, add, any_lane, at, cross, cross2, dot, fill, keep, keep3, make2, make3, max3, min3, norm_sqr,
+from .lanes import (absolute, add, any_lane, at, cross, cross2, dot, fill, keep3, make2, make3, max3, min3, norm_sqr,
                     norm_sqr2, lane_ints, negate, scale, sub, sub2)
 
 
@@ -222,7 +222,7 @@ def deepest_candidate(p0, p1, p2, s_p, q0, q1, q2, n_q, s_q, cos_pq, tol: float,
             depth_e, point_e = deeper(depth_e, point_e, depth_i,
                                       add(pts_p[i], scale(sub(pts_p[k], pts_p[i]), u)))
         depth_c, point_c = clearly_deeper(depth, point, depth_e, point_e, margin)
-        depth = keep(search_edges, depth_c, depth)
+        depth = ti.select(search_edges, depth_c, depth)
         point = keep3(search_edges, point_c, point)
     return depth, point
 
@@ -376,15 +376,15 @@ def pressed_through(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3):
 
 
 @ti.func
-def all_finite(x: vec3) -> bool:
-    """Whether no coordinate of x is NaN or infinite, by its exponent bits (immune to fast-math)."""
-    ok = True
-    for k in ti.static(range(3)):
-        if ti.static(runtime.precision() == "f64"):
-            ok = ok and (ti.bit_cast(x[k], ti.u64) >> ti.u64(52)) & ti.u64(0x7FF) != ti.u64(0x7FF)
-        else:
-            ok = ok and (ti.bit_cast(x[k], ti.u32) >> ti.u32(23)) & ti.u32(0xFF) != ti.u32(0xFF)
-    return ok
+def all_finite(points: ti.template()):
+    """Whether no coordinate of the points (a list of vec3 or of points of lanes) is NaN or
+    infinite, lane by lane: x·0 is NaN exactly for those (runtime.init turns fast_math off,
+    so this is not folded to 0)."""
+    zeros = points[0].x * 0.0
+    for p in ti.static(points):
+        for c in ti.static(range(3)):
+            zeros += at(p, c) * 0.0
+    return zeros == 0.0
 
 
 @ti.kernel
@@ -406,8 +406,7 @@ def _collide_pairs_kernel(
         n = vec3(0.0)
         s = -1
         p = vec3(0.0)
-        if (all_finite(a0) and all_finite(a1) and all_finite(a2)
-                and all_finite(b0) and all_finite(b1) and all_finite(b2)):
+        if all_finite([a0, a1, a2, b0, b1, b2]):
             hit_i, d, n, s, p = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
             h = ti.cast(hit_i, ti.i8)
         hit[i] = h
@@ -464,13 +463,7 @@ def _collide_packets_kernel(
             first = window_index * window + batch * lanes
             rows = [ti.min(first + lane, n - 1) for lane in ti.static(range(lanes))]
             tri = load_lanes(a, b, rows)
-            # x·0 is NaN exactly for a NaN or infinite x (fast_math is off, so it is not folded).
-            zeros = tri[0][0].x * 0.0
-            for t in ti.static(range(2)):
-                for v in ti.static(range(3)):
-                    for c in ti.static(range(3)):
-                        zeros += at(tri[t][v], c) * 0.0
-            finite = zeros == 0.0
+            finite = all_finite(tri[0] + tri[1])
             _, _, s_a, s_b = raw_planes(tri[0][0], tri[0][1], tri[0][2], tri[1][0], tri[1][1], tri[1][2])
             finite_ints = lane_ints(finite)
             to_list = lane_ints(finite & straddles(s_a) & straddles(s_b))

@@ -76,8 +76,10 @@ def test_every_batch_size_and_offset_gives_the_same_rows(f64):
 
 
 def test_a_bad_pair_in_a_later_batch_is_named(f64):
+    """The batch names the first bad pair, and the one-pair path marks the same rows bad."""
     a, b = random_pairs(50, seed=3)
     b[37, 2, 1] = np.nan
     a[44, 0, 0] = np.inf
     with pytest.raises(ValueError, match=r"^pair 37: triangle b has a NaN or infinite coordinate$"):
         taichi_dcd.collide_triangle_pairs(a, b)
+    np.testing.assert_array_equal(np.flatnonzero(one_pair_each(a, b)[0] < 0), [37, 44])
