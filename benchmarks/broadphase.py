@@ -30,8 +30,8 @@ import trimesh
 from common import machine_line
 from exact_tritri import classify
 
-from taichi_dcd import runtime
-from taichi_dcd.collision import CollisionPipeline
+from taichi_dcd.core import runtime
+from taichi_dcd.collision.pipeline import CollisionPipeline
 
 PLACEMENTS = ("links", "shift", "coax")
 FCL_PAPER_MS = {"links": 1.6, "shift": 8.4, "coax": 12.2}  # DESIGN.md §7, measured here earlier

@@ -11,8 +11,8 @@ from pathlib import Path
 
 from common import machine_line
 
-from taichi_dcd.builtin_scenes import builtin_names
-from taichi_dcd.metrics import verdict
+from taichi_dcd.scene.builtin import builtin_names
+from taichi_dcd.measure.penetration import verdict
 
 
 def main() -> None:

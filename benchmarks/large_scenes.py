@@ -27,7 +27,7 @@ import numpy as np
 from common import machine_line
 
 import taichi_dcd
-from taichi_dcd.builtin_scenes import LARGE_SCENES, builtin_scene
+from taichi_dcd.scene.builtin import LARGE_SCENES, builtin_scene
 
 PHASES = ("predict", "broad", "narrow", "projection")
 
@@ -39,8 +39,8 @@ def peak_rss_mib() -> float:
 def bench(name: str, frames: int | None, measure_every: int, arch: str, threads: int | None,
           substeps: int | None = None, iterations: int | None = None) -> dict:
     """One scene in this (fresh, spawned) process, so that its peak memory is its own."""
-    from taichi_dcd.run import SettleClock
-    from taichi_dcd.scene import Scene
+    from taichi_dcd.output.run import SettleClock
+    from taichi_dcd.scene.scene import Scene
 
     taichi_dcd.init(arch=arch, precision="f64", cpu_threads=threads)
     config = builtin_scene(name)

@@ -2,7 +2,7 @@
 
 Compares, on the same seeded random pairs (vertices uniform in the unit cube,
 about 28% intersecting):
-- the plain per-pair NumPy reference (`taichi_dcd.reference`), on a subset;
+- the plain per-pair NumPy reference (`taichi_dcd.collision.reference`), on a subset;
 - our full method (`taichi_dcd.collide_triangle_pairs`: Möller, candidates,
   Eq. 6, normal and point, input checks and fresh output arrays included) in f32 and
   f64, which on CPU computes a batch of pairs at once in SIMD lanes;
@@ -23,9 +23,9 @@ import numpy as np
 from common import machine_line
 
 import taichi_dcd
-from taichi_dcd import runtime
-from taichi_dcd.narrowphase import _collide_pairs_kernel
-from taichi_dcd.reference import collide_triangle_pairs_reference
+from taichi_dcd.core import runtime
+from taichi_dcd.collision.narrowphase import _collide_pairs_kernel
+from taichi_dcd.collision.reference import collide_triangle_pairs_reference
 
 
 def best_rate(fn, n: int, repeat: int) -> float:

@@ -20,8 +20,8 @@ import time
 from common import machine_line
 
 import taichi_dcd
-from taichi_dcd.config import scene_from_dict
-from taichi_dcd.scene import Scene
+from taichi_dcd.scene.config import scene_from_dict
+from taichi_dcd.scene.scene import Scene
 
 
 def count_launches():
@@ -29,7 +29,7 @@ def count_launches():
     launch increments counter[0]."""
     from taichi.lang import kernel_impl
 
-    from taichi_dcd.launch import BoundKernel
+    from taichi_dcd.core.launch import BoundKernel
 
     counter = [0]
     original = kernel_impl.Kernel.__call__

@@ -10,16 +10,16 @@ __version__ = "0.1.0"
 
 # Public name -> module that defines it, imported on first access.
 _LAZY = {
-    "init": "runtime",
-    "is_initialized": "runtime",
-    "collide_triangle_pairs": "narrowphase",
-    "PairContacts": "narrowphase",
-    "find_contacts": "collision",
-    "MeshContacts": "collision",
-    "load_scene": "scene",
-    "Scene": "scene",
-    "SceneError": "config",
-    "SimulationError": "solver",
+    "init": "core.runtime",
+    "is_initialized": "core.runtime",
+    "collide_triangle_pairs": "collision.narrowphase",
+    "PairContacts": "collision.narrowphase",
+    "find_contacts": "collision.pipeline",
+    "MeshContacts": "collision.pipeline",
+    "load_scene": "scene.scene",
+    "Scene": "scene.scene",
+    "SceneError": "scene.config",
+    "SimulationError": "solver.solver",
 }
 
 __all__ = ["__version__", *_LAZY]

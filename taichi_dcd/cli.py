@@ -122,10 +122,10 @@ INTERRUPTED = 130  # _run_one's status after Ctrl-C; the command line exits 1
 
 
 def _run_one(config, args, out) -> tuple[int, dict | None]:
-    from . import runtime
-    from .config import SceneError, scale_scene
-    from .run import OutputError, run_scene
-    from .scene import Scene
+    from .core import runtime
+    from .scene.config import SceneError, scale_scene
+    from .output.run import OutputError, run_scene
+    from .scene.scene import Scene
 
     try:
         if args.scale != 1.0:
@@ -170,13 +170,13 @@ def _run_one(config, args, out) -> tuple[int, dict | None]:
 def _cmd_run(args) -> int:
     from pathlib import Path
 
-    from .builtin_scenes import scene_config
-    from .config import SceneError
+    from .scene.builtin import scene_config
+    from .scene.config import SceneError
 
     if args.scene == "all":
-        from .builtin_scenes import builtin_names
+        from .scene.builtin import builtin_names
 
-        from .run import MANIFEST, manifest_files, write_json_atomic
+        from .output.run import MANIFEST, manifest_files, write_json_atomic
 
         root = Path(args.out) if args.out else Path("outputs")
         sheet = root / "contact-sheet.png"
@@ -192,7 +192,7 @@ def _cmd_run(args) -> int:
             status = max(status, code)
             finished.append(name)
         if not args.no_frames:
-            from .render import write_contact_sheet
+            from .output.render import write_contact_sheet
 
             write_json_atomic(root / MANIFEST, {"written_by": "taichi-dcd", "files": [sheet.name]})
             write_contact_sheet([(n, root / n / "frames") for n in finished], sheet)
@@ -211,10 +211,10 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from .builtin_scenes import ERLEBEN_SIX, scene_config
-    from .config import SceneError
-    from .run import OutputError
-    from .sweep import SweepError, parse_list, recommend, run_failed, run_sweep, sweep_runs
+    from .scene.builtin import ERLEBEN_SIX, scene_config
+    from .scene.config import SceneError
+    from .output.run import OutputError
+    from .output.sweep import SweepError, parse_list, recommend, run_failed, run_sweep, sweep_runs
 
     try:
         substeps = parse_list(args.substeps, int)
@@ -233,7 +233,7 @@ def _cmd_sweep(args) -> int:
     if args.arch != "cpu" and not args.ray:
         # Every run would fail alike in its own process; say so once, before any starts. (On
         # a Ray cluster the workers' machines, not this one, need the GPU.)
-        from . import runtime
+        from .core import runtime
 
         try:
             runtime.init(arch=args.arch)
@@ -272,7 +272,7 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_list(args) -> int:
-    from .builtin_scenes import LARGE_SCENES, SCENES
+    from .scene.builtin import LARGE_SCENES, SCENES
 
     width = max(len(n) for n in [*SCENES, *LARGE_SCENES])
     for name, (text, _) in SCENES.items():
@@ -285,8 +285,8 @@ def _cmd_list(args) -> int:
 def _cmd_collide(args) -> int:
     import numpy as np
 
-    from . import runtime
-    from .narrowphase import collide_triangle_pairs
+    from .core import runtime
+    from .collision.narrowphase import collide_triangle_pairs
 
     try:
         runtime.init(arch=args.arch, precision=args.precision)

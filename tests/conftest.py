@@ -37,7 +37,7 @@ def fresh_taichi_per_file():
     test of a file) fits a mechanism that is shown (test_package): Scenes of the previous
     file collected after the reset freed the new program's contact arrays at the same
     addresses; runtime.reset now keeps such arrays alive."""
-    from taichi_dcd import runtime
+    from taichi_dcd.core import runtime
 
     runtime.reset()
 
@@ -77,10 +77,10 @@ def scene_run(tmp_path_factory):
     """run(name, scale=1.0, precision="f64", **changes) → metrics (dict) of a built-in scene
     run as `taichi-dcd run NAME --no-frames [--scale]` would, each at most
     once per session; `changes` set SimConfig fields. The metrics carry "out", the folder."""
-    from taichi_dcd.builtin_scenes import scene_config
-    from taichi_dcd.config import scale_scene
-    from taichi_dcd.run import run_scene
-    from taichi_dcd.scene import Scene
+    from taichi_dcd.scene.builtin import scene_config
+    from taichi_dcd.scene.config import scale_scene
+    from taichi_dcd.output.run import run_scene
+    from taichi_dcd.scene.scene import Scene
 
     done = {}
 

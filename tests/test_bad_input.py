@@ -130,10 +130,10 @@ def test_exploding_run_stops_naming_frame_and_body_and_keeps_last_good_state(tmp
 def test_contact_buffer_growth_is_reported(f64, tmp_path):
     import io
 
-    from taichi_dcd.builtin_scenes import builtin_scene
-    from taichi_dcd.contacts import ContactConstraints
-    from taichi_dcd.run import run_scene
-    from taichi_dcd.scene import Scene
+    from taichi_dcd.scene.builtin import builtin_scene
+    from taichi_dcd.collision.contacts import ContactConstraints
+    from taichi_dcd.output.run import run_scene
+    from taichi_dcd.scene.scene import Scene
 
     scene = Scene(builtin_scene("spike-in-crack"))
     scene.solver.contacts = ContactConstraints(1)
@@ -177,7 +177,7 @@ def test_interrupt_leaves_incomplete_metrics_and_readable_frames(tmp_path):
 
 
 def test_metrics_json_is_replaced_atomically(tmp_path, monkeypatch):
-    from taichi_dcd import run
+    from taichi_dcd.output import run
 
     target = tmp_path / "metrics.json"
     run.write_json_atomic(target, {"complete": True})

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from taichi_dcd.broadphase import BOX_SLACK, UniformGrid
-from taichi_dcd.runtime import tolerance
+from taichi_dcd.collision.broadphase import BOX_SLACK, UniformGrid
+from taichi_dcd.core.runtime import tolerance
 
 
 def brute_pairs(x, tri_indices, tri_body, tri_static, margin=0.0) -> set:

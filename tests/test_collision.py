@@ -6,7 +6,7 @@ import taichi as ti
 import trimesh
 
 import taichi_dcd
-from taichi_dcd.collision import CollisionPipeline
+from taichi_dcd.collision.pipeline import CollisionPipeline
 
 
 def brute_contacts(meshes) -> dict:

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from taichi_dcd.config import SceneError, scene_from_dict
-from taichi_dcd.scene import Scene
+from taichi_dcd.scene.config import SceneError, scene_from_dict
+from taichi_dcd.scene.scene import Scene
 
 DRAG = 2.0   # 1/s: terminal speed g/DRAG = 4.9 m/s, reached to 2% in 2 s
 G = 9.8
@@ -59,7 +59,7 @@ def test_a_scaled_scene_falls_through_the_same_motion_with_drag(f64_scene):
     """`scale_scene` by L = 100 (times ×√L): the drag rate must go ×L^-1/2 for the motion to
     be the same motion; the velocity after the same number of frames is √L times the
     unscaled one (1e-9 relative). Left unscaled, drag would act 10× too long per frame."""
-    from taichi_dcd.config import scale_scene
+    from taichi_dcd.scene.config import scale_scene
 
     config = scene_from_dict({"sim": {"gravity": [0.0, -G, 0.0]}, "body": [
         {"name": "body", "kind": "rigid", "drag": DRAG, "shape": "box", "params": {"size": [0.2, 0.2, 0.2]}}]},

@@ -10,10 +10,10 @@ import json
 
 import pytest
 
-from taichi_dcd.builtin_scenes import SOFT_SETTINGS
+from taichi_dcd.scene.builtin import SOFT_SETTINGS
 from taichi_dcd.cli import main
-from taichi_dcd.config import DEFAULT_ITERATIONS, DEFAULT_SUBSTEPS
-from taichi_dcd.metrics import verdict
+from taichi_dcd.scene.config import DEFAULT_ITERATIONS, DEFAULT_SUBSTEPS
+from taichi_dcd.measure.penetration import verdict
 
 RIGID_SCENES = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole", "spike-in-pit",
                 "spike-in-crack", "wedge-in-crack"]

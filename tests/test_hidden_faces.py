@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from taichi_dcd.config import scene_from_dict
-from taichi_dcd.hidden_faces import hidden_static_faces
-from taichi_dcd.scene import Scene
-from taichi_dcd.shapes import make_shape
+from taichi_dcd.scene.config import scene_from_dict
+from taichi_dcd.contact.hidden_faces import hidden_static_faces
+from taichi_dcd.scene.scene import Scene
+from taichi_dcd.scene.shapes import make_shape
 
 
 def placed(shape, params, position):
@@ -73,7 +73,7 @@ def test_comparing_faces_a_few_at_a_time_hides_the_faces_the_definition_hides(mo
     default slabs and with slabs of 3 pairs it hides exactly the faces a face-by-face check
     of the definition hides, on the abutting boxes above and on a crack block against a hole
     block's side (where the notch leaves faces partly covered)."""
-    import taichi_dcd.hidden_faces as hf
+    import taichi_dcd.contact.hidden_faces as hf
     scenes = [
         ([placed("box", {"size": [1.0, 1.0, 2.0], "subdivisions": 2}, [-0.5, 0.5, 0.0]),
           placed("box", {"size": [1.0, 1.0, 2.0], "subdivisions": 2}, [0.5, 0.5, 0.0]),

@@ -16,7 +16,7 @@ pytest.importorskip("fcntl")
 
 LEASE_AND_WAIT = (
     "import sys\n"
-    "from taichi_dcd import kernel_cache\n"
+    "from taichi_dcd.core import kernel_cache\n"
     "print(kernel_cache.leased_folder(sys.argv[1]), flush=True)\n"
     "sys.stdin.readline()\n"
 )
@@ -55,7 +55,7 @@ def test_processes_side_by_side_lease_different_folders_and_later_ones_reuse_the
 
 
 def test_a_folder_the_user_names_is_left_to_taichi(tmp_path):
-    code = ("import sys\nfrom taichi_dcd import kernel_cache\n"
+    code = ("import sys\nfrom taichi_dcd.core import kernel_cache\n"
             "print(kernel_cache.leased_folder(sys.argv[1]))")
     out = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=60,
                          env=dict(os.environ, TI_OFFLINE_CACHE_FILE_PATH=str(tmp_path / "mine")))

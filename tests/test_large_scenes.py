@@ -5,9 +5,9 @@ are listed and left out of `run all`. benchmarks/large_scenes.py runs them to re
 
 import numpy as np
 
-from taichi_dcd.builtin_scenes import builtin_names, builtin_scene
+from taichi_dcd.scene.builtin import builtin_names, builtin_scene
 from taichi_dcd.cli import main
-from taichi_dcd.scene import body_mesh
+from taichi_dcd.scene.scene import body_mesh
 
 
 def meshes(name):

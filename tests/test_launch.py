@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from taichi_dcd.launch import BoundKernel, Launcher
+from taichi_dcd.core.launch import BoundKernel, Launcher
 
 vec3 = ti.types.vector(3, ti.f64)
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import taichi_dcd
-from taichi_dcd import runtime
-from taichi_dcd.narrowphase import PACKET_BYTES, WINDOW_BATCHES, _collide_pairs_kernel
+from taichi_dcd.core import runtime
+from taichi_dcd.collision.narrowphase import PACKET_BYTES, WINDOW_BATCHES, _collide_pairs_kernel
 
 from conftest import random_pairs
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import taichi_dcd
-from taichi_dcd import runtime
+from taichi_dcd.core import runtime
 
 finite = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False, allow_infinity=False)
 

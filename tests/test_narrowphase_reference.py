@@ -3,7 +3,7 @@
 import numpy as np
 
 import taichi_dcd
-from taichi_dcd.reference import collide_triangle_pairs_reference
+from taichi_dcd.collision.reference import collide_triangle_pairs_reference
 
 from conftest import random_pairs
 

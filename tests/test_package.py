@@ -27,7 +27,7 @@ def test_first_call_initialises_with_defaults():
     out = run_python(
         "import numpy as np, taichi_dcd\n"
         "r = taichi_dcd.collide_triangle_pairs(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)))\n"
-        "from taichi_dcd import runtime\n"
+        "from taichi_dcd.core import runtime\n"
         "print(runtime.settings()['precision'], runtime.settings()['arch'], r.depth.dtype)"
     )
     assert out.returncode == 0, out.stderr

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from taichi_dcd.narrowphase import PRESSED_MIN_FACING, pressed_through
+from taichi_dcd.collision.narrowphase import PRESSED_MIN_FACING, pressed_through
 
 vec3 = ti.math.vec3
 

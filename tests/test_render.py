@@ -6,8 +6,8 @@ import io
 import numpy as np
 import pytest
 
-from taichi_dcd import shapes
-from taichi_dcd.render import BACKGROUND, Camera, Rasterizer, project_points, write_png
+from taichi_dcd.scene import shapes
+from taichi_dcd.output.render import BACKGROUND, Camera, Rasterizer, project_points, write_png
 
 RED, BLUE = (200, 0, 0), (0, 0, 200)
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from taichi_dcd import shapes
-from taichi_dcd.metrics import distance_to_surface, pair_penetration, scene_penetration
-from taichi_dcd.scene import rotation_matrix
+from taichi_dcd.scene import shapes
+from taichi_dcd.measure.penetration import distance_to_surface, pair_penetration, scene_penetration
+from taichi_dcd.scene.scene import rotation_matrix
 
 
 def placed(mesh, rotation=(0.0, 0.0, 0.0), position=(0.0, 0.0, 0.0)):
@@ -108,7 +108,7 @@ def test_scene_measure_skips_static_pairs_and_names_the_deepest_pair():
 def test_pruned_distance_equals_brute_force_on_seeded_points():
     """distance_to_surface skips triangles by bounding spheres; it must equal the distance
     to every triangle, on points inside, outside and on a deformed ball."""
-    from taichi_dcd.metrics import distance_to_surface
+    from taichi_dcd.measure.penetration import distance_to_surface
 
     rng = np.random.default_rng(7)
     ball = shapes.icosphere(0.5, 2)
@@ -145,7 +145,7 @@ def test_closest_points_are_exact_at_every_scale(scale):
     """The closest point on a triangle agrees with the plain reference on seeded random
     pairs at every scale, and lies on the triangle (trimesh's closest_point, with an
     absolute tolerance, is off by up to 75% at 1e-3)."""
-    from taichi_dcd.metrics import closest_points_on_triangles
+    from taichi_dcd.measure.penetration import closest_points_on_triangles
 
     rng = np.random.default_rng(11)
     tris, points = rng.random((1500, 3, 3)), rng.random((1500, 3)) * 2 - 0.5
@@ -159,7 +159,7 @@ def test_closest_points_are_exact_at_every_scale(scale):
 
 
 def test_closest_point_on_a_zero_area_triangle_is_on_its_segment():
-    from taichi_dcd.metrics import closest_points_on_triangles
+    from taichi_dcd.measure.penetration import closest_points_on_triangles
 
     tris = np.array([[[0.0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0.0, 0, 0], [0, 0, 0], [0, 0, 0]]])
     points = np.array([[1.5, 1.0, 0.0], [0.0, 0.0, 2.0]])

@@ -6,8 +6,8 @@ damping and impact tests run whole scenes without it (`f64_scene`, ~4× faster).
 
 import numpy as np
 
-from taichi_dcd.config import scene_from_dict
-from taichi_dcd.scene import Scene
+from taichi_dcd.scene.config import scene_from_dict
+from taichi_dcd.scene.scene import Scene
 
 
 def test_soft_ball_in_flight_keeps_shape_volume_and_parabola(f64):
@@ -107,7 +107,7 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     in every substep (solver.add_resting_contacts): without the vertex rows the vertices
     were pressed back in each substep and sat 10 µm deep here (0.1 mm at 1.3 s); without
     the edge rows the spike's edges cut 1.2e-8 m³ out of the ball here."""
-    from taichi_dcd.builtin_scenes import builtin_scene
+    from taichi_dcd.scene.builtin import builtin_scene
 
     scene = Scene(builtin_scene("soft-ball-on-spike"))
     ball = scene.body_names.index("ball")
@@ -182,7 +182,7 @@ def test_sharp_edges_of_a_subdivided_box_are_its_twelve_edges(f64):
     soft ball: the flagged edges, each on one face only, are exactly the pieces of the box's
     12 edges (both ends on the box's edge lines: two coordinates at ±half the size), 24
     pieces; no edge inside a face and no edge of the soft ball is flagged."""
-    from taichi_dcd.solver import sharp_edge_bits
+    from taichi_dcd.solver.solver import sharp_edge_bits
 
     scene = Scene(scene_from_dict({"body": [
         {"name": "block", "kind": "static", "shape": "box", "params": {"size": [2.0, 1.0, 4.0], "subdivisions": 1}},

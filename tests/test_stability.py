@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from taichi_dcd.builtin_scenes import ERLEBEN_SIX, builtin_scene
+from taichi_dcd.scene.builtin import ERLEBEN_SIX, builtin_scene
 from taichi_dcd.cli import main
-from taichi_dcd.config import scene_from_dict
-from taichi_dcd.metrics import verdict
-from taichi_dcd.run import run_scene
-from taichi_dcd.scene import Scene
+from taichi_dcd.scene.config import scene_from_dict
+from taichi_dcd.measure.penetration import verdict
+from taichi_dcd.output.run import run_scene
+from taichi_dcd.scene.scene import Scene
 
 # Frames (0.01 s each at scale 1) through the first contact's aftermath, compared between
 # scales; later, rounding differences grow wherever a body balances on an edge or apex.

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from taichi_dcd.cli import main
-from taichi_dcd.sweep import TIMING_COLUMNS, SweepRun, pareto_front, read_csv, recommend, run_one, run_sweep
+from taichi_dcd.output.sweep import TIMING_COLUMNS, SweepRun, pareto_front, read_csv, recommend, run_one, run_sweep
 
 from cli_helpers import assert_one_line_error, run_cli, snapshot
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from taichi_dcd.tunnelling import mesh_thickness, substeps_for_impacts
+from taichi_dcd.solver.tunnelling import mesh_thickness, substeps_for_impacts
 
 
 @pytest.mark.parametrize("size", [(1.0, 1.0, 1.0), (2.0, 0.01, 2.0), (3e-4, 1e-4, 2e-4)])
@@ -95,8 +95,8 @@ def test_the_frames_own_substep_check_agrees_with_the_numpy_choice():
 def substep_check_trials():
     """The body of the test above, in debug mode."""
     import taichi_dcd
-    from taichi_dcd.config import scene_from_dict
-    from taichi_dcd.scene import Scene
+    from taichi_dcd.scene.config import scene_from_dict
+    from taichi_dcd.scene.scene import Scene
 
     taichi_dcd.init(arch="cpu", precision="f64", debug=True)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .runtime import TOL_ULPS
+from ..core.runtime import TOL_ULPS
 
 
 def _longest_edge(t: np.ndarray) -> float:

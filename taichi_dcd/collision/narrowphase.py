@@ -51,10 +51,10 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime
-from .geometry import (has_area, lex_compare, longest_edge_sq, plane_frame, snap_to_zero, straddles,
+from ..core import runtime
+from ..core.geometry import (has_area, lex_compare, longest_edge_sq, plane_frame, snap_to_zero, straddles,
                        strictly_inside_2d, to_frame, vec3)
-from .lanes import (absolute, add, any_lane, at, cross, cross2, dot, fill, keep3, make2, make3, max3, min3, norm_sqr,
+from ..core.lanes import (absolute, add, any_lane, at, cross, cross2, dot, fill, keep3, make2, make3, max3, min3, norm_sqr,
                     norm_sqr2, lane_ints, negate, scale, sub, sub2)
 
 

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from . import runtime
-from .hidden_faces import hidden_static_faces
-from .model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
-from .tunnelling import mesh_thickness
+from ..core import runtime
+from ..contact.hidden_faces import hidden_static_faces
+from ..core.model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
+from ..solver.tunnelling import mesh_thickness
 
 DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
 

@@ -62,11 +62,11 @@ def run_one(run: SweepRun, out_root: str, arch: str = "cpu", cpu_threads: int | 
     row = {"scene": run.scene, "substeps": run.substeps, "iterations": run.iterations,
            "precision": run.precision, "passed": False}
     try:
-        from . import runtime
-        from .builtin_scenes import scene_config
-        from .metrics import verdict
+        from ..core import runtime
+        from ..scene.builtin import scene_config
+        from ..measure.penetration import verdict
         from .run import run_scene
-        from .scene import Scene
+        from ..scene.scene import Scene
 
         config = scene_config(run.scene)
         row["scene"] = config.name
@@ -293,7 +293,7 @@ def plot_pareto(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .metrics import PASS_MAX_DEPTH
+    from ..measure.penetration import PASS_MAX_DEPTH
 
     fig, ax = plt.subplots(figsize=(9, 6), dpi=100)
     scenes = list(dict.fromkeys(r["scene"] for r in rows))

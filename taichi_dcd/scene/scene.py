@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from . import runtime
+from ..core import runtime
 from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
-from .model import RIGID, SOFT, STATIC
+from ..core.model import RIGID, SOFT, STATIC
 from .shapes import make_shape
-from .tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
+from ..solver.tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
 
 
 def rotation_matrix(degrees) -> np.ndarray:
@@ -60,7 +60,7 @@ class Scene:
     """A scene being simulated. `step(frames)` advances it; the accessors return numpy copies."""
 
     def __init__(self, config: SceneConfig, broad_phase: str = "auto"):
-        from .solver import XPBDSolver
+        from ..solver.solver import XPBDSolver
 
         runtime.ensure_init()
         self.config = config
@@ -133,7 +133,7 @@ class Scene:
         can meet within the frame close in faster than sim.max_impact_motion per substep
         (else the landing goes that deep). A body's motion over the frame is bounded by
         (|v| + |ω|·reach + |g|·dt)·dt."""
-        from .solver import SimulationError
+        from ..solver.solver import SimulationError
 
         sim = self.config.sim
         bodies = self.model.bodies
@@ -273,7 +273,7 @@ class Scene:
     def penetration(self, vertices: np.ndarray | None = None):
         """Penetration measured from the current meshes alone (metrics.scene_penetration);
         `vertices` (V, 3) if the caller already read them."""
-        from .metrics import scene_penetration
+        from ..measure.penetration import scene_penetration
 
         x = self.vertices() if vertices is None else vertices
         return scene_penetration([
@@ -304,7 +304,7 @@ def precision_warnings(model, vertices: np.ndarray, sim) -> list[str]:
     or positions coarser than F32_NOISE of the contact test's final depth (1e-4 m ×
     length_scale). On Erleben's scenes (|x| ≤ 3.5 m, h = 1 ms) the noise is ~4e-4 m/s, and
     spike-in-crack never settles in f32."""
-    from .metrics import PASS_FINAL_DEPTH
+    from ..measure.penetration import PASS_FINAL_DEPTH
 
     if runtime.precision() != "f32" or not model.bodies:
         return []

@@ -21,9 +21,9 @@ indices (a, b) with body[a] < body[b], in no particular order.
 import numpy as np
 import taichi as ti
 
-from . import runtime
-from .geometry import vec3
-from .launch import Launcher
+from ..core import runtime
+from ..core.geometry import vec3
+from ..core.launch import Launcher
 
 ivec2 = ti.types.vector(2, ti.i32)
 ivec3 = ti.types.vector(3, ti.i32)

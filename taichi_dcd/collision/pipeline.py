@@ -10,11 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime
+from ..core import runtime
 from .broadphase import UniformGrid, ivec2, ivec5
 from .contacts import Contacts
-from .geometry import vec3
-from .launch import Launcher
+from ..core.geometry import vec3
+from ..core.launch import Launcher
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 
 

@@ -30,15 +30,15 @@ import time
 import numpy as np
 import taichi as ti
 
-from . import runtime
-from .broadphase import BOX_SLACK, boxes_overlap
-from .collision import CollisionPipeline
+from ..core import runtime
+from ..collision.broadphase import BOX_SLACK, boxes_overlap
+from ..collision.pipeline import CollisionPipeline
 from .constraints import edge_length, tet_volume6, xpbd_delta_lambda
-from .contacts import ContactConstraints
-from .geometry import barycentric, longest_edge_sq
-from .model import RIGID, SOFT, STATIC, Model, State, mat_field, scalar_field, vec_field
-from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
-from .rigid import (apply_positional_impulse, apply_velocity_impulse, carried_angular_velocity,
+from ..collision.contacts import ContactConstraints
+from ..core.geometry import barycentric, longest_edge_sq
+from ..core.model import RIGID, SOFT, STATIC, Model, State, mat_field, scalar_field, vec_field
+from ..collision.narrowphase import collide_triangle_pair, pressed_through, touching_planes
+from ..core.rigid import (apply_positional_impulse, apply_velocity_impulse, carried_angular_velocity,
                     generalized_inv_mass, inv_mass_matrix_world, quat_matrix, quat_rotate, rotate_by,
                     world_times)
 from .tunnelling import TUNNEL_FRACTION

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime
+from ..core import runtime
 
 ivec2 = ti.types.vector(2, ti.i32)
 ivec3 = ti.types.vector(3, ti.i32)

@@ -15,7 +15,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang._ndarray import Ndarray
 
-from taichi_dcd import kernel_cache
+from . import kernel_cache
 
 ARCHS = ("cpu", "cuda", "vulkan")
 PRECISIONS = ("f32", "f64")

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from . import runtime
-from .scene import Scene
-from .solver import SimulationError
+from ..core import runtime
+from ..scene.scene import Scene
+from ..solver.solver import SimulationError
 
 
 def write_json_atomic(path: Path, data: dict) -> None:

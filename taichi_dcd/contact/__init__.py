@@ -1,0 +1,2 @@
+"""The contact rules: how the narrow phase's triangle-pair results become the solver's contact
+rows (one small named function per rule), the row buffer and the anchors rows are tied to."""

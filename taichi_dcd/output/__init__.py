@@ -1,0 +1,1 @@
+"""What a run leaves behind: the run folder and its frames loop, the rasteriser, the sweep."""
