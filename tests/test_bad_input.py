@@ -131,7 +131,7 @@ def test_contact_buffer_growth_is_reported(f64, tmp_path):
     import io
 
     from taichi_dcd.scene.builtin import builtin_scene
-    from taichi_dcd.collision.contacts import ContactConstraints
+    from taichi_dcd.contact.rows import ContactConstraints
     from taichi_dcd.output.run import run_scene
     from taichi_dcd.scene.scene import Scene
 

@@ -178,7 +178,7 @@ def test_many_frames_in_one_launch_move_the_bodies_as_frames_stepped_one_by_one(
     the frame rerun). The tilted box thrown down (its landing frames take more substeps),
     with a one-row buffer: the same poses, bit for bit, as 120 single frames, the same
     frame count, time and substep choices."""
-    from taichi_dcd.collision.contacts import ContactConstraints
+    from taichi_dcd.contact.rows import ContactConstraints
 
     bodies = [box("box", (0.2,) * 3, (0.0, 0.3, 0.0), rotation=[0.0, 0.0, 30.0], velocity=[0.0, -4.0, 0.0]),
               box("block", (2.0, 0.2, 2.0), (0.0, -0.1, 0.0), kind="static")]
@@ -323,11 +323,11 @@ def test_inverse_mass_matrix_moves_a_point_as_an_impulse_does(f64):
 
 
 def test_convex_neighbours_of_a_box_are_across_its_edges_not_its_face_diagonals(f64_scene):
-    """solver.convex_neighbours on a static box beside a rigid wedge: each of the box's 12
+    """contact.exits.convex_neighbours on a static box beside a rigid wedge: each of the box's 12
     triangles has exactly two neighbours, across the two of its edges that are box edges
     (the faces meet at 90°), and none across its face diagonal (a flat edge); every
     neighbour is on the same body and lists the triangle back across the same edge."""
-    from taichi_dcd.solver.solver import convex_neighbours
+    from taichi_dcd.contact.exits import convex_neighbours
 
     scene = Scene(scene_from_dict({"body": [
         {"name": "block", "kind": "static", "shape": "box", "params": {"size": [2.0, 1.0, 4.0]}},

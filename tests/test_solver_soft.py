@@ -104,7 +104,7 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     most 0.1 mm inside it with at most 1e-9 m³ of overlap, and no ball vertex more than
     5 µm behind a spike face (seen: 3.7 µm; under 3 µm at the earlier damping of
     100/s without drag). Vertices and sharp edges held against the membrane have rows
-    in every substep (solver.add_resting_contacts): without the vertex rows the vertices
+    in every substep (contact.soft_rows.add_resting_vertex_rows): without the vertex rows the vertices
     were pressed back in each substep and sat 10 µm deep here (0.1 mm at 1.3 s); without
     the edge rows the spike's edges cut 1.2e-8 m³ out of the ball here."""
     from taichi_dcd.scene.builtin import builtin_scene
@@ -178,11 +178,11 @@ def test_grid_path_lands_the_soft_cube_as_the_all_pairs_path_does(f64_scene):
 
 
 def test_sharp_edges_of_a_subdivided_box_are_its_twelve_edges(f64):
-    """solver.sharp_edge_bits on a static box with faces split once (48 triangles) beside a
+    """contact.exits.sharp_edge_bits on a static box with faces split once (48 triangles) beside a
     soft ball: the flagged edges, each on one face only, are exactly the pieces of the box's
     12 edges (both ends on the box's edge lines: two coordinates at ±half the size), 24
     pieces; no edge inside a face and no edge of the soft ball is flagged."""
-    from taichi_dcd.solver.solver import sharp_edge_bits
+    from taichi_dcd.contact.exits import sharp_edge_bits
 
     scene = Scene(scene_from_dict({"body": [
         {"name": "block", "kind": "static", "shape": "box", "params": {"size": [2.0, 1.0, 4.0], "subdivisions": 1}},

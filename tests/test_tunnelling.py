@@ -76,7 +76,7 @@ def test_a_body_falling_onto_the_ground_takes_substeps_for_its_speed_only_when_n
 
 def test_the_frames_own_substep_check_agrees_with_the_numpy_choice():
     """The all-pairs frame checks on the device whether the configured substeps suffice
-    (solver.substeps_suffice) and only otherwise leaves the choice to numpy
+    (solver.summary.substeps_suffice) and only otherwise leaves the choice to numpy
     (Scene._substeps_for_next_frame): on seeded random states of a static ground, two rigid
     bodies and a soft ball (moved apart or together, random linear and angular velocities,
     a random wobble of the ball's particles), the frame runs exactly when numpy would keep

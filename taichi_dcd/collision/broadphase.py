@@ -255,10 +255,12 @@ def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32
 
 @ti.func
 def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i32, c: ivec3, inv_h: float,
-                 first: ti.i32, end: ti.i32, tri_level: ti.template(), entry_key: ti.template(),
-                 entry_box: ti.template(), pairs: ti.template(), group_count: ti.template()):
+                 first: ti.i32, end: ti.i32, entries: ti.template(), pairs: ti.template(),
+                 group_count: ti.template()):
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
-    `level`, belong to another body and have an overlapping box."""
+    `level`, belong to another body and have an overlapping box. entries: (tri_level,
+    entry_key, entry_box), the levels and one table's entries, a tuple made with ti.static."""
+    tri_level, entry_key, entry_box = ti.static(entries[0], entries[1], entries[2])
     for f in range(first, end):
         key = entry_key[f]
         if (key[1] != body_t and key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
@@ -288,7 +290,7 @@ def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti
                         c = ivec3(x, y, z)
                         b = bucket_of(level, c, mask)
                         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
-                                     tri_level, entry_key, entry_box, pairs, group_count)
+                                     ti.static((tri_level, entry_key, entry_box)), pairs, group_count)
 
 
 @ti.kernel
@@ -344,12 +346,12 @@ def _find_pairs(
         # A bucket holding one body's triangles only has no pair to offer.
         bodies = moving_bodies[b]
         end = moving_end[b + 1] if bodies[0] != bodies[1] else 0
-        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end, tri_level,
-                     moving_key, moving_box, pairs, group_count)
+        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
+                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
-            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1], tri_level,
-                         static_key, static_box, pairs, group_count)
+            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
+                         ti.static((tri_level, static_key, static_box)), pairs, group_count)
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)

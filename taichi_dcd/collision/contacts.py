@@ -5,6 +5,7 @@ fixed capacity, and whoever fills it grows it and runs again on overflow.
 """
 
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 import taichi as ti
@@ -36,7 +37,7 @@ class ContactArrays:
         return len(self.depth)
 
 
-class _GrowableBuffer:
+class GrowableBuffer:
     """Taichi ndarrays of `capacity` rows, allocated by the subclass's `_allocate`."""
 
     def __init__(self, capacity: int = 1024):
@@ -54,7 +55,7 @@ class _GrowableBuffer:
         self._resize(max(needed, 2 * self.capacity))
 
 
-class Contacts(_GrowableBuffer):
+class Contacts(GrowableBuffer):
     """Fixed-capacity contact buffer (Taichi ndarrays) with a counter."""
 
     def __init__(self, capacity: int = 1024):
@@ -82,47 +83,13 @@ class Contacts(_GrowableBuffer):
         )
 
 
-class ContactConstraints(_GrowableBuffer):
-    """The solver's contact constraints of one substep (Taichi ndarrays, fixed capacity).
+class PairResults(NamedTuple):
+    """The narrow phase's results for candidate pairs inside a kernel, from a Contacts buffer's
+    arrays: pair[k] (ivec2), side[k] (int8), depth[k], normal[k], point[k] as in ContactArrays.
+    Build it in the kernel as `ti.static(PairResults(...))` (see contact.rows.ContactRows)."""
 
-    Row k ties a point of the moved triangle `tri[k][0]` (barycentric weights
-    `bary_moved[k]`) to a point of the other triangle `tri[k][1]` (`bary_other[k]`);
-    `tri[k][2]` is the row before it with a moved triangle of the same body (-1: none);
-    the moved point is pushed along the unit `normal[k]` until it reaches the other
-    point's plane. `budget[k]` is how much more of C (m) it may correct this substep (see
-    solver.DEPENETRATION_SPEED); on a row with a soft body it is instead the depth (m) the
-    row may leave (a soft body's own constraints move the anchors back and forth between
-    sweeps, so a spent budget would stop the row halfway), `lambda_n[k]` the
-    normal multiplier accumulated this substep (kg·m), `lambda_t[k]` the static-friction one
-    (vec3 in the tangent plane, kg·m: corrections that point different ways partly cancel), `vn0[k]`
-    the relative normal velocity before the solve (m/s, for restitution),
-    `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s);
-    `block_*` the linearisation of a rigid body's row (solver.solve_blocks):
-    its lever from the (moved) body's centre (m), tangential slip (m), gap (m) and 3×3 inverse
-    mass (the two bodies' summed for a row between rigid bodies);
-    `block_rows` the indices of those rows.
-    """
-
-    def _allocate(self, capacity: int) -> None:
-        real = runtime.real_type()
-        vec3 = ti.types.vector(3, real)
-        self.tri = ti.ndarray(ivec3, shape=capacity)
-        self.bary_moved = ti.ndarray(vec3, shape=capacity)
-        self.bary_other = ti.ndarray(vec3, shape=capacity)
-        self.normal = ti.ndarray(vec3, shape=capacity)
-        self.budget = ti.ndarray(real, shape=capacity)
-        self.lambda_n = ti.ndarray(real, shape=capacity)
-        self.lambda_t = ti.ndarray(vec3, shape=capacity)
-        self.vn0 = ti.ndarray(real, shape=capacity)
-        self.impulse_t = ti.ndarray(vec3, shape=capacity)
-        self.block_lever = ti.ndarray(vec3, shape=capacity)
-        self.block_slip = ti.ndarray(vec3, shape=capacity)
-        self.block_gap = ti.ndarray(real, shape=capacity)
-        self.block_k = ti.ndarray(ti.types.matrix(3, 3, real), shape=capacity)
-        self.block_rows = ti.ndarray(ti.i32, shape=capacity)
-
-    def arrays(self) -> tuple:
-        """The ndarrays in the order the solver's kernels take them."""
-        return (self.tri, self.bary_moved, self.bary_other, self.normal, self.budget,
-                self.lambda_n, self.lambda_t, self.vn0, self.impulse_t,
-                self.block_lever, self.block_slip, self.block_gap, self.block_k, self.block_rows)
+    pair: Any
+    side: Any
+    depth: Any
+    normal: Any
+    point: Any

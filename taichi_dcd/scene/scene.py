@@ -57,9 +57,12 @@ def body_mesh(body, base_dir: Path) -> trimesh.Trimesh:
 
 
 class Scene:
-    """A scene being simulated. `step(frames)` advances it; the accessors return numpy copies."""
+    """A scene being simulated. `step(frames)` advances it; the accessors return numpy copies.
 
-    def __init__(self, config: SceneConfig, broad_phase: str = "auto"):
+    broad_phase: "auto", "brute" or "grid" (solver.solver.XPBDSolver). rules: the contact rules
+    compiled in (contact.rules.ContactRules; all by default), for tests and studies."""
+
+    def __init__(self, config: SceneConfig, broad_phase: str = "auto", rules=None):
         from ..solver.solver import XPBDSolver
 
         runtime.ensure_init()
@@ -81,7 +84,7 @@ class Scene:
         self.warnings += precision_warnings(self.model, self.vertices(), config.sim)
         self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
-                                 length_scale=config.sim.length_scale)
+                                 length_scale=config.sim.length_scale, rules=rules)
         self.fast_frames = 0                  # frames run with more substeps than configured
         self.most_substeps = config.sim.substeps
         self.fast_notice: str | None = None   # why, the first time it happened

@@ -1,0 +1,59 @@
+"""The in-kernel all-pairs broad phase of small scenes: every triangle pair of different bodies
+(not both static, neither a hidden face) whose padded boxes overlap, serially."""
+
+import taichi as ti
+
+from ..collision.broadphase import BOX_SLACK, boxes_overlap
+from ..core import runtime
+from ..core.model import STATIC
+
+vec3 = ti.math.vec3
+ivec3 = ti.types.vector(3, ti.i32)
+
+
+@ti.func
+def triangle_box(sim: ti.template(), t: ti.i32):
+    """Box of triangle t padded like the grid's (see broadphase.BOX_SLACK)."""
+    idx = sim.model.tri_indices[t]
+    p0, p1, p2 = sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]
+    lo = ti.min(p0, p1, p2)
+    hi = ti.max(p0, p1, p2)
+    pad = (ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+           + sim.body_box_margin[sim.model.tri_body[t]])
+    sim.tri_lo[t] = lo - pad
+    sim.tri_hi[t] = hi + pad
+
+
+@ti.func
+def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
+    """Serial all-pairs broad phase: triangle pairs of different bodies (not both static),
+    neither a hidden static face, whose padded boxes overlap, written to rows.tri; returns
+    their number (more than the capacity on overflow)."""
+    n_b = ti.static(sim.model.n_bodies)
+    for t in range(ti.static(sim.model.n_tris)):
+        triangle_box(sim, t)
+    for b in range(n_b):
+        lo = vec3(ti.math.inf)
+        hi = vec3(-ti.math.inf)
+        for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
+            lo = ti.min(lo, sim.tri_lo[t])
+            hi = ti.max(hi, sim.tri_hi[t])
+        sim.body_lo[b] = lo
+        sim.body_hi[b] = hi
+    n = 0
+    capacity = rows.tri.shape[0]
+    for ba in range(n_b):
+        for bb in range(ba + 1, n_b):
+            if ((sim.model.body_kind[ba] != STATIC or sim.model.body_kind[bb] != STATIC)
+                    and boxes_overlap(sim.body_lo[ba], sim.body_hi[ba], sim.body_lo[bb], sim.body_hi[bb])):
+                for ta in range(sim.model.body_tri_range[ba][0], sim.model.body_tri_range[ba][1]):
+                    if (sim.model.tri_hidden[ta] == 0
+                            and boxes_overlap(sim.tri_lo[ta], sim.tri_hi[ta], sim.body_lo[bb], sim.body_hi[bb])):
+                        for tb in range(sim.model.body_tri_range[bb][0], sim.model.body_tri_range[bb][1]):
+                            if (sim.model.tri_hidden[tb] == 0
+                                    and boxes_overlap(sim.tri_lo[ta], sim.tri_hi[ta], sim.tri_lo[tb],
+                                                      sim.tri_hi[tb])):
+                                if n < capacity:
+                                    rows.tri[n] = ivec3(ta, tb, -1)
+                                n += 1
+    return n

@@ -1,0 +1,94 @@
+"""Carried rows: rows that pushed in one substep are offered again in the next while their
+anchors stay together, unless another row of the same two bodies pushes back against them."""
+
+import numpy as np
+import taichi as ti
+
+from ..core.model import STATIC
+from .anchors import anchor_world, involves_soft
+from .rows import has_pair_row, start_row
+
+ivec2 = ti.types.vector(2, ti.i32)
+
+# Two rows between the same moving bodies push about opposite ways when their pushes on one
+# body are within this angle of opposite (keep_rows: neither is carried).
+OPPOSED_DEGREES = 30.0
+
+
+@ti.func
+def keep_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, slip_max: float):
+    """Remember the rigid and static rows of [0, n) that pushed in this substep (λ_n > 0)
+    and whose two anchors lie within slip_max (m) of each other across the normal, for
+    carried_rows in the next substep. A row carried before may be carried again: a
+    support the detection finds only every few substeps is then held in between; once its
+    anchors slide apart (the bodies slip or roll past it) it is let go. So is a row
+    between two moving bodies that another row of theirs at the same place pushed back
+    against (opposed_row): where a box's bottom edge crosses the lower box's top edge,
+    two rows along the boxes' side normals (7° apart, about opposite ways) were carried
+    for good, each undoing the other, and kept the boxes' block (solve_blocks) from ever
+    converging."""
+    count = 0
+    for k in range(n):
+        tri = rows.tri[k]
+        if rows.lambda_n[k] > 0.0 and not involves_soft(sim, tri[0], tri[1]) and count < sim.carry_capacity:
+            normal = rows.normal[k]
+            gap = (anchor_world(sim, tri[1], rows.bary_other[k], False)
+                   - anchor_world(sim, tri[0], rows.bary_moved[k], False))
+            keep = (gap - gap.dot(normal) * normal).norm() <= slip_max
+            if ti.static(sim.rules.opposed_rows):
+                if keep:
+                    keep = not opposed_row(sim, rows, k, slip_max)
+            if keep:
+                sim.carry_tri[count] = ivec2(tri[0], tri[1])
+                sim.carry_bary_moved[count] = rows.bary_moved[k]
+                sim.carry_bary_other[count] = rows.bary_other[k]
+                sim.carry_normal[count] = normal
+                count += 1
+    sim.carry_count[0] = count
+
+
+@ti.func
+def opposed_row(sim: ti.template(), rows: ti.template(), k: ti.i32, reach: float) -> bool:
+    """Whether another row of this substep between the same two moving bodies pushed
+    (λ_n > 0) about the opposite way (the pushes' directions on one body at more than
+    OPPOSED_DEGREES from opposite) with its moved anchor within `reach` (m) of row k's."""
+    tri = rows.tri[k]
+    body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
+    found = False
+    if sim.model.body_kind[body_m] != STATIC and sim.model.body_kind[body_o] != STATIC:
+        point = anchor_world(sim, tri[0], rows.bary_moved[k], False)
+        cos_opposed = ti.static(np.cos(np.radians(OPPOSED_DEGREES)))
+        for side in ti.static(range(2)):
+            body, other = (body_m, body_o) if side == 0 else (body_o, body_m)
+            j = sim.body_last_row[body]
+            while j >= 0 and not found:
+                tri_j = rows.tri[j]
+                if j != k and sim.model.tri_body[tri_j[1]] == other and rows.lambda_n[j] > 0.0:
+                    # Row j moves `body` along its normal; row k moves body_m along its own.
+                    push_j = ti.select(body == body_m, 1.0, -1.0) * rows.normal[j]
+                    if push_j.dot(rows.normal[k]) <= -cos_opposed:
+                        p = anchor_world(sim, tri_j[0], rows.bary_moved[j], False)
+                        found = (p - point).norm() <= reach
+                j = tri_j[2]
+    return found
+
+
+@ti.func
+def carried_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, max_push: float) -> ti.i32:
+    """The rows keep_rows remembered from the last substep whose triangle pair has no row
+    now, on the same anchors and normal. A body between two supports (a spike lying
+    along a groove, on both rims) is pushed off one, into the other, within one
+    projection; without the other's row, which detection made before the push, it ends
+    the substep inside that one and the next substep pushes it back, a cycle that never
+    comes to rest. Such a row holds C = N·(p_other − p_moved) ≥ 0 and does nothing
+    unless it is crossed. Rows go after row total-1 while they fit; returns the row count."""
+    n_rows = total
+    for j in range(sim.carry_count[0]):
+        pair = sim.carry_tri[j]
+        if n_rows < rows.tri.shape[0] and not has_pair_row(sim, rows, pair[0], pair[1]):
+            bm, bo, normal = sim.carry_bary_moved[j], sim.carry_bary_other[j], sim.carry_normal[j]
+            p_m = anchor_world(sim, pair[0], bm, False)
+            p_o = anchor_world(sim, pair[1], bo, False)
+            start_row(sim, rows, n_rows, pair[0], pair[1], bm, bo, normal, p_m, p_o, max_push)
+            n_rows += 1
+    return n_rows

@@ -1,0 +1,180 @@
+"""One substep, the same sequence for both broad phases: the rows of the contact rules, the
+Gauss-Seidel projection, velocities, the velocity pass and the rows carried to the next substep;
+and the frame's snapshot that an overflowing frame returns to."""
+
+import taichi as ti
+
+from ..collision.all_pairs import candidate_pairs
+from ..contact.carried import carried_rows, keep_rows
+from ..contact.pair_rows import add_pair_contact, collide_candidates
+from ..contact.rows import forget_rows
+from ..contact.soft_rows import add_resting_contacts
+from ..contact.vertex_rows import add_vertex_contacts
+from ..core.model import RIGID
+from ..core.rigid import quat_matrix
+from .contact_solve import (
+    compute_levels,
+    solve_contact_friction,
+    solve_contact_normal,
+    solve_velocities,
+)
+from .integrate import place_vertex, predict, update_velocities
+from .islands import block_body, pair_block, solve_blocks
+from .soft import solve_edge, solve_volume
+
+vec3 = ti.math.vec3
+
+
+@ti.func
+def project(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, iterations: ti.i32, h: float):
+    """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial
+    loop); each sweep ends with the rows of rigid bodies (against static bodies and between
+    each other) solved in blocks, one per island of touching bodies (solve_blocks)."""
+    compute_levels(sim, rows, n_contacts)
+    # The blocks' turns act through the inverse inertia at the substep's start
+    # (apply_positional_impulse), the same for every sweep.
+    for b in range(ti.static(sim.model.n_bodies)):
+        if sim.model.body_kind[b] == RIGID:
+            rot = quat_matrix(sim.state.body_q_prev[b])
+            sim.block_inv_inertia[b] = rot @ sim.model.body_inv_inertia[b] @ rot.transpose()
+    if ti.static(sim.model.has_soft):
+        for e in range(ti.static(sim.model.n_edges)):
+            sim.edge_lambda[e] = 0.0
+    for it in range(iterations):
+        if ti.static(sim.model.has_soft):
+            for e in range(ti.static(sim.model.n_edges)):
+                solve_edge(sim, e, h)
+            for b in range(ti.static(sim.model.n_bodies)):
+                solve_volume(sim, b)
+        # Normals first, then friction on the slip they leave; the sweeps alternate
+        # direction so that no contact is always last.
+        for j in range(n_contacts):
+            k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+            if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
+                solve_contact_normal(sim, rows, k)
+        for j in range(n_contacts):
+            k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+            if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
+                solve_contact_friction(sim, rows, k)
+        solve_blocks(sim, rows, n_contacts, it)
+
+
+@ti.func
+def rows_after_pairs(sim: ti.template(), rows: ti.template(), n: ti.i32, max_push: float):
+    """After the n rows of the triangle pairs: vertex rows, soft resting rows and carried rows
+    (each rule its own function in contact/). Returns (rows needed before the carried rows, above
+    the buffer's capacity if it overflowed; rows to solve, within it)."""
+    needed = n
+    if ti.static(sim.rules.vertex_rows or sim.rules.soft_feature_rows):
+        needed = add_vertex_contacts(sim, rows, n, max_push)
+    if ti.static(sim.rules.resting_rows or sim.rules.sharp_edge_rows):
+        needed = add_resting_contacts(sim, rows, needed, max_push)
+    n_rows = ti.min(needed, rows.tri.shape[0])
+    if ti.static(sim.rules.carried_rows):
+        n_rows = carried_rows(sim, rows, n_rows, max_push)
+    return needed, n_rows
+
+
+@ti.func
+def solve_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm: float,
+               max_push: float):
+    """The rest of a substep on its n rows (Müller 2020, Alg. 2, lines 9-17): projection,
+    velocities, the velocity pass, and the rows to carry to the next substep (serial)."""
+    project(sim, rows, n, iterations, h)
+    update_velocities(sim, h)
+    solve_velocities(sim, rows, n, iterations, h, g_norm)
+    if ti.static(sim.rules.carried_rows):
+        keep_rows(sim, rows, n, max_push)
+
+
+@ti.func
+def substep_all_pairs(sim: ti.template(), rows: ti.template(), iterations: ti.i32, h: float, gravity: vec3,
+                      g_norm: float, kick: float, depenetration: float):
+    """One substep with the all-pairs broad phase (Müller 2020, Alg. 2: predict, contacts,
+    projection, velocities, velocity pass; serial). Returns (rows wanted: candidate pairs or
+    contact rows, whichever more, above the buffer's capacity if it overflowed; contact rows
+    solved)."""
+    capacity = rows.tri.shape[0]
+    predict(sim, h, gravity, kick)
+    for i in range(ti.static(sim.model.n_vertices)):
+        place_vertex(sim, i)
+    n = candidate_pairs(sim, rows)
+    wanted = n
+    n = collide_candidates(sim, rows, ti.min(n, capacity), depenetration * h)
+    needed, n = rows_after_pairs(sim, rows, n, depenetration * h)
+    solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+    return ti.max(wanted, needed), n
+
+
+@ti.func
+def substep_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.template(), n_pairs: ti.i32,
+                       iterations: ti.i32, h: float, g_norm: float, depenetration: float) -> ti.i32:
+    """The same substep after the grid's narrow phase (its n_pairs results in `pairs`, a
+    collision.contacts.Contacts' arrays: pair, side, depth, normal, point); predict ran in its own
+    kernel. Returns the rows solved (serial)."""
+    forget_rows(sim)
+    n = 0
+    for k in range(n_pairs):
+        n = add_pair_contact(sim, rows, n, pairs.pair[k], ti.cast(pairs.side[k], ti.i32), pairs.depth[k],
+                             pairs.normal[k], pairs.point[k], depenetration * h)
+    _, n = rows_after_pairs(sim, rows, n, depenetration * h)
+    solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+    return n
+
+
+@ti.func
+def save_state(sim: ti.template()):
+    """Copy the state and the carried rows to the frame's snapshot."""
+    sim.saved_carry[4][0] = sim.carry_count[0]
+    for k in range(sim.carry_count[0]):
+        sim.saved_carry[0][k] = sim.carry_tri[k]
+        sim.saved_carry[1][k] = sim.carry_bary_moved[k]
+        sim.saved_carry[2][k] = sim.carry_bary_other[k]
+        sim.saved_carry[3][k] = sim.carry_normal[k]
+    for b in range(ti.static(sim.model.n_bodies)):
+        sim.saved_body[0][b] = sim.state.body_x[b]
+        sim.saved_body[1][b] = sim.state.body_q[b]
+        sim.saved_body[2][b] = sim.state.body_v[b]
+        sim.saved_body[3][b] = sim.state.body_w[b]
+    if ti.static(sim.model.has_soft):
+        for i in range(ti.static(sim.model.n_vertices)):
+            sim.saved_vertex[0][i] = sim.state.vertex_x[i]
+            sim.saved_vertex[1][i] = sim.state.vertex_v[i]
+
+
+@ti.func
+def restore_state(sim: ti.template()):
+    """Return to the frame's snapshot (serial)."""
+    sim.carry_count[0] = sim.saved_carry[4][0]
+    for k in range(sim.carry_count[0]):
+        sim.carry_tri[k] = sim.saved_carry[0][k]
+        sim.carry_bary_moved[k] = sim.saved_carry[1][k]
+        sim.carry_bary_other[k] = sim.saved_carry[2][k]
+        sim.carry_normal[k] = sim.saved_carry[3][k]
+    for b in range(ti.static(sim.model.n_bodies)):
+        sim.state.body_x[b] = sim.saved_body[0][b]
+        sim.state.body_q[b] = sim.saved_body[1][b]
+        sim.state.body_v[b] = sim.saved_body[2][b]
+        sim.state.body_w[b] = sim.saved_body[3][b]
+    if ti.static(sim.model.has_soft):
+        for i in range(ti.static(sim.model.n_vertices)):
+            sim.state.vertex_x[i] = sim.saved_vertex[0][i]
+            sim.state.vertex_v[i] = sim.saved_vertex[1][i]
+    for i in range(ti.static(sim.model.n_vertices)):
+        place_vertex(sim, i)
+
+
+@ti.func
+def state_is_sane(sim: ti.template(), bound: float) -> ti.i32:
+    """-1 - (index of the first body) whose state is NaN or beyond `bound`, else 0."""
+    bad = 0
+    for b in range(ti.static(sim.model.n_bodies)):
+        ok = ti.abs(sim.state.body_x[b]).max() <= bound and ti.abs(sim.state.body_v[b]).max() <= bound
+        if bad == 0 and not ok:
+            bad = -1 - b
+    if ti.static(sim.model.has_soft):
+        for i in range(ti.static(sim.model.n_vertices)):
+            ok = ti.abs(sim.state.vertex_x[i]).max() <= bound and ti.abs(sim.state.vertex_v[i]).max() <= bound
+            if bad == 0 and not ok:
+                bad = -1 - sim.model.vertex_body[i]
+    return bad
