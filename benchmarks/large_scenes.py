@@ -27,7 +27,7 @@ import numpy as np
 from common import machine_line
 
 import taichi_dcd
-from taichi_dcd.scene.builtin import LARGE_SCENES, builtin_scene
+from taichi_dcd.scene.builtin import LARGE, builtin_scene
 
 PHASES = ("predict", "broad", "narrow", "projection")
 
@@ -97,7 +97,7 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("scenes", nargs="*", default=list(LARGE_SCENES), help=f"default: {' '.join(LARGE_SCENES)}")
+    parser.add_argument("scenes", nargs="*", default=list(LARGE), help=f"default: {' '.join(LARGE)}")
     parser.add_argument("--frames", type=int, default=None, help="most frames (default: the scene's, 5 s)")
     parser.add_argument("--measure-every", type=int, default=10, help="frames between penetration measures")
     parser.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
@@ -105,9 +105,9 @@ def main() -> None:
     parser.add_argument("--substeps", type=int, default=None, help="substeps per frame (default: the scene's)")
     parser.add_argument("--iterations", type=int, default=None, help="solver sweeps per substep (default: the scene's)")
     args = parser.parse_args()
-    unknown = [s for s in args.scenes if s not in LARGE_SCENES]
+    unknown = [s for s in args.scenes if s not in LARGE]
     if unknown:
-        parser.error(f"unknown large scene {unknown[0]!r} (known: {', '.join(LARGE_SCENES)})")
+        parser.error(f"unknown large scene {unknown[0]!r} (known: {', '.join(LARGE)})")
     if any(v is not None and v < 1 for v in (args.substeps, args.iterations)):
         parser.error("--substeps and --iterations must be positive")
     print(machine_line())

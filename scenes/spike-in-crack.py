@@ -1,8 +1,1 @@
-"""Erleben-style contact test `spike-in-crack` (see `taichi-dcd list`). Takes the flags of
-`taichi-dcd run`, e.g. `python scenes/spike-in-crack.py --no-frames --out DIR`."""
-import sys
-
-from taichi_dcd.cli import main
-
-if __name__ == "__main__":
-    sys.exit(main(["run", "spike-in-crack", *sys.argv[1:]]))
+run-builtin.py

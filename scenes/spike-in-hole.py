@@ -1,8 +1,1 @@
-"""Erleben-style contact test `spike-in-hole` (see `taichi-dcd list`). Takes the flags of
-`taichi-dcd run`, e.g. `python scenes/spike-in-hole.py --no-frames --out DIR`."""
-import sys
-
-from taichi_dcd.cli import main
-
-if __name__ == "__main__":
-    sys.exit(main(["run", "spike-in-hole", *sys.argv[1:]]))
+run-builtin.py

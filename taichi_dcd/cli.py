@@ -272,13 +272,13 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_list(args) -> int:
-    from .scene.builtin import LARGE_SCENES, SCENES
+    from .scene.builtin import ALL, LARGE, describe
 
-    width = max(len(n) for n in [*SCENES, *LARGE_SCENES])
-    for name, (text, _) in SCENES.items():
-        print(f"{name:<{width}}  {text}")
-    for name, (text, _) in LARGE_SCENES.items():
-        print(f"{name:<{width}}  {text} (not in `all`)")
+    width = max(len(n) for n in [*ALL, *LARGE])
+    for name in ALL:
+        print(f"{name:<{width}}  {describe(name)}")
+    for name in LARGE:
+        print(f"{name:<{width}}  {describe(name)} (not in `all`)")
     return 0
 
 

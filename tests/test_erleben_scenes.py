@@ -10,7 +10,6 @@ import json
 
 import pytest
 
-from taichi_dcd.scene.builtin import SOFT_SETTINGS
 from taichi_dcd.cli import main
 from taichi_dcd.scene.config import DEFAULT_ITERATIONS, DEFAULT_SUBSTEPS
 from taichi_dcd.measure.penetration import verdict
@@ -29,7 +28,8 @@ def test_scene_settles_without_penetrating(scene_run, name):
     metrics = scene_run(name)
     assert metrics["complete"] and not metrics["nan_detected"]
     default = {"substeps": DEFAULT_SUBSTEPS, "iterations": DEFAULT_ITERATIONS}
-    settings = SOFT_SETTINGS if name in SOFT_SCENES else default
+    # The soft scene keeps the setting its damping and compliance were tuned at (its file's [sim]).
+    settings = {"substeps": 12, "iterations": 16} if name in SOFT_SCENES else default
     assert {k: metrics["settings"][k] for k in settings} == settings
     assert verdict(metrics) is None, verdict(metrics)
     assert metrics["time_to_settle"] <= 5.0 - 0.2
