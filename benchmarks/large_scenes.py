@@ -7,7 +7,7 @@ simulated second (kernel compilation, i.e. the first frame, not timed), the shar
 stepping time spent predicting, in the broad phase, the narrow phase, projection (contacts
 + velocities) and the rest (Python per frame: the substep choice, reading state back), peak
 resident memory of the process (and its size after Taichi's start, before the scene), the
-most substeps a frame took, and the penetration by the independent measure (metrics.py):
+most substeps a frame took, and the penetration by the independent measure (measure/penetration.py):
 deepest over the frames it was taken on (every --measure-every frames and the last) and at
 the end, with the overlap volume at the end.
 

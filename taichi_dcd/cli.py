@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="simulate a scene and write frames, final meshes and metrics",
         description="Simulate SCENE (a built-in name from `taichi-dcd list`, `all` for every built-in "
-                    "scene, or a TOML scene file, DESIGN.md §4) and write frames/, final/<body>.obj, "
+                    "scene, or a TOML scene file: docs/scene-format.md) and write frames/, final/<body>.obj, "
                     "metrics.json and metrics.csv into the output folder. `all` also writes "
                     "outputs/contact-sheet.png. Exit status 0 on success, 1 if the simulation failed "
                     "(NaN, explosion), 2 for bad usage or input.",

@@ -1,6 +1,6 @@
 """Erleben's contact tests with the settings a user gets (`taichi-dcd run NAME
 --no-frames`): no NaN, settled within 5 s, penetration by the independent measure
-(metrics.py) at most 1e-4 m and 1e-9 m³ at the end and 5 mm over the run.
+(measure/penetration.py) at most 1e-4 m and 1e-9 m³ at the end and 5 mm over the run.
 
 Every built-in scene runs here, the soft one included. The ones that fail today are strict
 expected failures with the reason (the README's table has their figures): when one starts

@@ -1,5 +1,5 @@
 """The Erleben shapes are closed solids of the stated size, and the independent
-penetration measure (DESIGN.md §5) gives known answers."""
+penetration measure (docs/method.md) gives known answers."""
 
 import math
 

@@ -202,7 +202,7 @@ def test_wedge_overhanging_a_block_edge_rests(f64_scene, broad_phase):
     substep; its end faces then cross the block's side face, and Eq. 6 on that pair measures
     its inner base vertices 0.24 m behind the side face along a horizontal normal: pushed
     sideways every substep, it crept off the edge at 2.6 cm/s. Such a row now leaves through
-    the block's top face, 1e-5 m away (XPBDSolver.nearest_exit). What is left is a bounded
+    the block's top face, 1e-5 m away (contact.exits.nearest_exit). What is left is a bounded
     rocking of about 1e-6 m, as the support along the block's edge line comes and goes."""
     scene = Scene(scene_from_dict({"sim": {"frame_dt": 0.01}, "body": [
         {"name": "block", "kind": "static", "shape": "box", "params": {"size": [2.0, 1.0, 2.0]},
@@ -233,7 +233,7 @@ def test_spike_lying_across_a_groove_rests_on_both_rims(f64_scene, broad_phase):
     the predicted pose crosses; pushed off it, the spike ended each substep inside the other
     rim, and the next substep pushed it back: it rocked by ~0.15 mm every substep with 3.6 J
     of kinetic energy (at 12 x 8, either broad phase), for good. The last substep's rows are
-    now offered again (XPBDSolver.carried_rows): from 1 s on its kinetic energy stays below
+    now offered again (contact.carried.carried_rows): from 1 s on its kinetic energy stays below
     1e-3 J, and from 11 s it moves less than 1e-5 m in a second, no deeper than 1e-4 m."""
     scene = lying_spike_scene(broad_phase)
     scene.step(100)
@@ -262,7 +262,7 @@ def spike_lying_on_its_face(friction: float = 0.5) -> Scene:
 
 def test_spike_lying_on_its_face_rests_on_the_ground_at_the_default_sweeps(f64_scene):
     """A body resting on three points, friction included, at the default 12 x 8: its rows
-    against the static ground are solved as one block (XPBDSolver.solve_static_blocks).
+    against the static ground are solved as one block (solver.islands.solve_blocks).
     Projected one at a time, each push turned the spike and slid the other points for
     friction to undo, and it rested 3.5e-8 m deep (2.4e-9 m³ of overlap; 1.7e-11 m without
     friction). Now it rests on the ground, no deeper than 1e-10 m by the independent

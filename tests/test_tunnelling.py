@@ -1,4 +1,4 @@
-"""The substep guards of discrete detection (tunnelling.py): wall thickness from ray casts
+"""The substep guards of discrete detection (solver/tunnelling.py): wall thickness from ray casts
 against analytic boxes, and the impact-depth substep rule against a per-pair loop."""
 
 import math

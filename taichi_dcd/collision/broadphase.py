@@ -445,7 +445,7 @@ class UniformGrid:
     by skin × the base cell size, and a query in which no moving vertex has moved that
     far along any axis since returns the same pairs, a superset of the exact ones
     (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
-    never binned, so in no pair (faces hidden against another static body, hidden_faces.py).
+    never binned, so in no pair (faces hidden against another static body, contact/hidden_faces.py).
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,

@@ -1,7 +1,7 @@
 """Triangle-pair discrete collision: Kikuchi & Kanai, "A Unified Discrete Collision
 Framework for Triangle Primitives" (EG 2025), as pure Taichi functions.
 
-For triangles A and B the method (paper §3; DESIGN.md §2) is:
+For triangles A and B the method (paper §3; docs/method.md) is:
 1. planes N_A, N_B (Eq. 1) and the signed distances of each triangle's vertices
    to the other's plane;
 2. Möller's interval-overlap test on the line N_A × N_B (threshold 0);

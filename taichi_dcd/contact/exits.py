@@ -17,7 +17,7 @@ SHARP_EDGE_DEGREES = 30.0
 
 # A contact row between rigid or static bodies, deeper than one substep's allowance, whose
 # point is nearer the plane of a convex neighbour of the other triangle than this fraction of
-# its depth leaves through that neighbour instead (XPBDSolver.nearest_exit). Rows within the
+# its depth leaves through that neighbour instead (contact.exits.nearest_exit). Rows within the
 # allowance keep their face: re-aimed too, a spike leaning on a block's edge, its points there
 # always nearly on the side plane, jittered at 1-3 mm/s (at 0.5 and at 0.01 alike). Edges whose
 # faces' normals differ by less than CONVEX_EDGE_DEGREES are not edges of the shape (a flat

@@ -53,7 +53,7 @@ class Model:
     vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
     indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
-    static body's (hidden_faces.py: never in contact). edge_indices (E,) ivec2; edge_rest (E,) m.
+    static body's (contact/hidden_faces.py: never in contact). edge_indices (E,) ivec2; edge_rest (E,) m.
     """
 
     bodies: list[BodyInfo]

@@ -1,4 +1,4 @@
-"""Penetration measured from meshes alone, independently of the solver (DESIGN.md §5).
+"""Penetration measured from meshes alone, independently of the solver (docs/method.md, 'Measuring penetration').
 
 For closed bodies A and B the overlap is the solid I = A ∩ B (manifold3d, in double
 precision). Its boundary is made of A's surface inside B and B's surface inside A, so

@@ -1,4 +1,4 @@
-"""Running a scene into an output folder (DESIGN.md §4): frames, final meshes,
+"""Running a scene into an output folder (docs/scene-format.md, 'Output folder'): frames, final meshes,
 metrics.json (written atomically) and metrics.csv, with progress on stderr."""
 
 from __future__ import annotations
@@ -193,10 +193,10 @@ def energy_drift(energy_start: float, kinetic, potential) -> float:
 def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.stderr, render: bool = False,
               gif: bool = False, draw_contacts: bool = False, force: bool = False, notices=sys.stderr) -> dict:
     """Simulate `frames` frames (default: the scene's; fewer once settled if the scene's
-    sim.stop_when_settled) and write the run's files into out_dir (DESIGN.md §4):
+    sim.stop_when_settled) and write the run's files into out_dir (docs/scene-format.md, 'Output folder'):
     final/<body>.obj, metrics.csv (one row per frame), metrics.json, and with `render`
     frames/frame_NNNNN.png (frame 0 = the initial state), with `gif` animation.gif.
-    Penetration is measured every frame from the meshes alone (metrics.py). Returns the
+    Penetration is measured every frame from the meshes alone (measure/penetration.py). Returns the
     metrics. A failed run (NaN, explosion) or an interrupt still writes metrics.json, with
     "complete": false and the reason, and final meshes of the last good frame. The folder is
     checked first (prepare_output: OutputError); contact buffer growth is reported on

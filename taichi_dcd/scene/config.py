@@ -1,4 +1,4 @@
-"""Scene settings as validated dataclasses, read from TOML (DESIGN.md §4).
+"""Scene settings as validated dataclasses, read from TOML (docs/scene-format.md).
 
 Every key has a default but `name`, `kind` and one of `mesh` / `shape` per body;
 unknown keys, wrong types and out-of-range values raise `SceneError` with a
@@ -14,7 +14,7 @@ from pathlib import Path
 
 # The recommended setting (README, "Speed versus accuracy"): 12 substeps of 8 Gauss-Seidel
 # sweeps per 0.01 s frame, the cheapest that passes all eight rigid Erleben scenes (with the
-# long rest and the mass ratios of 1000 too, since the static blocks of solver.py).
+# long rest and the mass ratios of 1000 too, since the static blocks of solver/islands.py).
 DEFAULT_SUBSTEPS = 12
 DEFAULT_ITERATIONS = 8
 # A scene has settled once every vertex has moved slower than SETTLE_SPEED (m/s) for SETTLE_TIME (s).
@@ -48,7 +48,7 @@ class SimConfig:
 
     @property
     def max_impact_motion(self) -> float:
-        """m a body may move per substep towards a body within reach (tunnelling.py)."""
+        """m a body may move per substep towards a body within reach (solver/tunnelling.py)."""
         return self.impact_depth if self.impact_depth is not None else IMPACT_DEPTH * self.length_scale
 
     @property

@@ -1,6 +1,6 @@
 """A runnable scene: settings, Model, State and solver together, stepped frame by frame.
 
-`load_scene(path)` reads a TOML scene file (DESIGN.md §4); `Scene.from_config` builds
+`load_scene(path)` reads a TOML scene file (docs/scene-format.md); `Scene.from_config` builds
 one from a `SceneConfig`. Positions in metres, velocities in m/s, time in seconds.
 """
 
@@ -109,13 +109,13 @@ class Scene:
     def step(self, frames: int = 1) -> int:
         """Advance `frames` frames of the scene's frame_dt, substeps and iterations; returns the
         contact count of the last frame. A frame in which bodies move too fast for discrete
-        detection runs more substeps (tunnelling.py; `fast_frames`, `most_substeps` and
-        `fast_notice` say so). Raises solver.SimulationError on NaN or explosion, or when a
+        detection runs more substeps (solver/tunnelling.py; `fast_frames`, `most_substeps` and
+        `fast_notice` say so). Raises solver.solver.SimulationError on NaN or explosion, or when a
         body is too fast even for MAX_SUBSTEP_FACTOR times the substeps."""
         sim = self.config.sim
         count = self.solver.last_contact_count
         # The all-pairs path runs frames in one launch and checks on the device whether the
-        # configured substeps do (solver.substeps_suffice); only a frame for which they do
+        # configured substeps do (solver.summary.substeps_suffice); only a frame for which they do
         # not is chosen here and stepped on its own.
         check = sim.max_impact_motion if len(self.model.bodies) >= 2 else None
         done = 0

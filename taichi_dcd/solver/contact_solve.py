@@ -17,7 +17,7 @@ from ..core.rigid import world_times
 vec3 = ti.math.vec3
 
 # In a contact between bodies stacked on the ground, the lower body holds still when the
-# upper one is at least this many times heavier (XPBDSolver.takes_part).
+# upper one is at least this many times heavier (solver.contact_solve.takes_part).
 SHOCK_MASS_RATIO = 10.0
 
 

@@ -13,7 +13,7 @@ vec3 = ti.math.vec3
 
 # Inner Gauss-Seidel sweeps (normals alone, then as many with friction) of each island's rows
 # per outer sweep, on its bodies linearised at the start of the outer sweep
-# (XPBDSolver.solve_blocks): BLOCK_SWEEPS for a lone rigid body against static ones,
+# (solver.islands.solve_blocks): BLOCK_SWEEPS for a lone rigid body against static ones,
 # COUPLED_SWEEPS for bodies touching each other, whose island leaves a phase once no row moves
 # its anchor by more than COUPLED_TOL of its lever (a stack's Gauss-Seidel converges slowly:
 # with opposing rows still carried (keep_rows), a stack of five boxes crept at 1.5e-5 m/s at 64

@@ -53,7 +53,7 @@ def summary_motion(sim: ti.template(), b: ti.i32):
 def substeps_suffice(sim: ti.template(), substeps: ti.i32, frame_dt: float, g_norm: float, max_impact: float,
                      thinnest: float) -> ti.i32:
     """1 if a frame of `substeps` needs no more of them by the rules of
-    Scene._substeps_for_next_frame (tunnelling.py), applied to the same per-body summary:
+    Scene._substeps_for_next_frame (solver/tunnelling.py), applied to the same per-body summary:
     the two fastest bodies move at most TUNNEL_FRACTION of the thinnest body's thickness
     per substep, and no two bodies that can meet within the frame close in by more than
     `max_impact` per substep. 0 otherwise (the caller then chooses in numpy). Serial."""
