@@ -42,6 +42,27 @@ def fresh_taichi_per_file():
     runtime.reset()
 
 
+def rules_under_test():
+    """The contact rules the tests run with: all of them, but those named in the environment
+    variable TAICHI_DCD_RULES_OFF (rule[,rule...]): the way to see which tests guard a rule."""
+    import os
+
+    from taichi_dcd.contact.rules import ContactRules
+
+    names = [n for n in os.environ.get("TAICHI_DCD_RULES_OFF", "").split(",") if n]
+    return ContactRules.without(*names)
+
+
+def pytest_configure(config):
+    """Every solver built in this process without naming its rules uses rules_under_test()
+    (tests that run the command line in a subprocess keep every rule on)."""
+    from taichi_dcd.solver import fields
+
+    rules = rules_under_test()
+    if rules != fields.ContactRules():
+        fields.ContactRules = lambda: rules
+
+
 @pytest.fixture
 def f64():
     taichi_dcd.init(arch="cpu", precision="f64", debug=True)
@@ -50,6 +71,15 @@ def f64():
 @pytest.fixture
 def f64_scene():
     taichi_dcd.init(arch="cpu", precision="f64", debug=False)
+
+
+@pytest.fixture(params=[pytest.param(False, id="fast"), pytest.param(True, id="debug", marks=pytest.mark.slow)])
+def f64_then_debug(request):
+    """For a whole-scene test worth bounds-checking: runs it without debug mode in the default
+    suite and again in Taichi's debug mode (bounds checks) in the slow suite. A frame kernel
+    compiles in ~12 s without debug mode and ~100 s with it. Yields whether debug is on."""
+    taichi_dcd.init(arch="cpu", precision="f64", debug=request.param)
+    return request.param
 
 
 @pytest.fixture

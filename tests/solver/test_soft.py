@@ -1,8 +1,8 @@
 """XPBD soft bodies: internal constraints (edges, volume), motion without contacts, and
 resting contact on a flat face.
 
-The flight test runs in Taichi's debug mode (bounds checks through the soft kernels); the
-damping and impact tests run whole scenes without it (`f64_scene`, ~4× faster)."""
+The flight test runs again in Taichi's debug mode in the slow suite (bounds checks through the
+soft kernels); the damping and impact tests run whole scenes without it (`f64_scene`)."""
 
 import numpy as np
 
@@ -10,7 +10,7 @@ from taichi_dcd.scene.config import scene_from_dict
 from taichi_dcd.scene.scene import Scene
 
 
-def test_soft_ball_in_flight_keeps_shape_volume_and_parabola(f64):
+def test_soft_ball_in_flight_keeps_shape_volume_and_parabola(f64_then_debug):
     """A soft icosphere thrown with no contacts: its centre follows x0 + v0·t + g·t²/2 (1e-9 m),
     its edge lengths stay at rest and its volume within 1e-9 relative."""
     x0, v0 = np.array([0.0, 1.0, 0.0]), np.array([1.0, 2.0, 0.5])
@@ -103,10 +103,12 @@ def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
     of the spike's axis, below the apex (draped) and far above the ground, the spike at
     most 0.1 mm inside it with at most 1e-9 m³ of overlap, and no ball vertex more than
     5 µm behind a spike face (seen: 3.7 µm; under 3 µm at the earlier damping of
-    100/s without drag). Vertices and sharp edges held against the membrane have rows
-    in every substep (contact.soft_rows.add_resting_vertex_rows): without the vertex rows the vertices
-    were pressed back in each substep and sat 10 µm deep here (0.1 mm at 1.3 s); without
-    the edge rows the spike's edges cut 1.2e-8 m³ out of the ball here."""
+    100/s without drag). The test of three contact rules (contact.rules): resting_rows
+    (vertices held against the membrane have rows in every substep: without them the vertices
+    were pressed back in each substep and sat 10 µm deep here, 0.1 mm at 1.3 s; now 60 µm and
+    2e-7 m³), sharp_edge_rows (without them the spike's edges cut 1.2e-8 m³ out of the ball)
+    and soft_feature_rows (without them the apex slides under the membrane: vertices 8 µm
+    behind the spike's faces)."""
     from taichi_dcd.scene.builtin import builtin_scene
 
     scene = Scene(builtin_scene("soft-ball-on-spike"))
@@ -146,8 +148,9 @@ def test_soft_cube_dropped_on_a_block_rests_on_its_face_without_sinking(f64_scen
     its bottom face on the block's top (no bottom vertex below y = 0 by more than 1e-5 of
     the size, none above it by 1e-4), no overlap by the independent measure, volume within
     2% of rest (seen: 2e-6). A patch of the bottom face pressed through the block's face
-    crosses none of its planes, so the unified test alone sees nothing there: before the
-    pressed-through contacts the face's inner vertices sank 2-4 mm and jittered."""
+    crosses none of its planes, so the unified test alone sees nothing there: without the
+    contact rule pressed_through the face's inner vertices sink (seen: 8 cm, 2-4 mm when the
+    rule was added) and jitter."""
     size = 0.2
     scene = soft_cube_on_block(size)
     rest = scene.body_mesh("cube")

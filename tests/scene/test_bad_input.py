@@ -127,7 +127,7 @@ def test_exploding_run_stops_naming_frame_and_body_and_keeps_last_good_state(tmp
     assert "nan" not in final.lower() and "inf" not in final.lower()
 
 
-def test_contact_buffer_growth_is_reported(f64, tmp_path):
+def test_contact_buffer_growth_is_reported(f64_then_debug, tmp_path):
     import io
 
     from taichi_dcd.scene.builtin import builtin_scene

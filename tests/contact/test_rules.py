@@ -1,0 +1,135 @@
+"""Each contact rule (taichi_dcd.contact.rules.ContactRules) on the smallest configuration that
+needs it: two or three bodies for a fraction of a second, every rule on. Each test fails when
+its rule is switched off: `TAICHI_DCD_RULES_OFF=<rule> python -m pytest tests/contact` runs
+these (and every other test) with that rule off. docs/method.md describes the rules; the soft
+bodies' rules are guarded by the soft scenes of tests/solver/test_soft.py (named there)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import taichi_dcd
+from taichi_dcd.scene.config import scene_from_dict
+from taichi_dcd.scene.scene import Scene
+
+from conftest import rules_under_test
+
+DATA = Path(__file__).parent.parent / "data"
+
+
+def box(name: str, size, position, kind: str = "rigid", **keys) -> dict:
+    return {"name": name, "kind": kind, "shape": "box", "params": {"size": list(size)}, "position": list(position),
+            **keys}
+
+
+def run(bodies: list, frames: int) -> dict:
+    """Run `bodies` for `frames` frames of 0.01 s at the default setting (f64, no debug mode:
+    a whole frame kernel). Returns the scene, each vertex's largest displacement (m), the
+    largest kinetic energy over the second half (J) and the independent penetration depth (m)."""
+    taichi_dcd.init(arch="cpu", precision="f64", debug=False)
+    scene = Scene(scene_from_dict({"sim": {"frame_dt": 0.01}, "body": bodies}, name="rule"), rules=rules_under_test())
+    start = scene.vertices().copy()
+    energy = []
+    for _ in range(frames):
+        scene.step(1)
+        energy.append(scene.kinetic_energy())
+    return {"scene": scene, "moved": np.abs(scene.vertices() - start).max(), "energy": max(energy[frames // 2:]),
+            "depth": scene.penetration().depth}
+
+
+@pytest.fixture(scope="module")
+def box_on_its_own_footprint():
+    """A 1 m cube set exactly on a static 1 m cube: every pair of its faces with the block's
+    touches (side faces in the side planes, bottom in the top, edges on edges). 0.3 s."""
+    return run([box("block", (1.0, 1.0, 1.0), (0.0, -0.5, 0.0), "static"),
+                box("box", (1.0, 1.0, 1.0), (0.0, 0.5, 0.0))], frames=30)
+
+
+def test_touching_pairs_hold_a_box_set_on_its_own_footprint(box_on_its_own_footprint):
+    """touching_pairs: the box does not sink 10 µm (without the rule no pair has a depth and the
+    box falls through the block: 0.44 m in 0.3 s)."""
+    box_vertices = box_on_its_own_footprint["scene"].body_vertices("box")
+    assert box_vertices[:, 1].min() > -1e-5
+
+
+def test_touching_rows_keep_the_box_on_its_footprint_from_jumping(box_on_its_own_footprint):
+    """touching_rows: no vertex of the box moves 10 µm (seen: 1.8 µm). Without the rule, rows at
+    rounding depth along the coincident vertical edges come in pairs pushing opposite ways,
+    their multipliers grow, and they let go at once: the box jumps 0.8 mm."""
+    assert box_on_its_own_footprint["moved"] < 1e-5
+
+
+def test_surface_points_leave_the_box_on_its_footprint_where_it_was_set(box_on_its_own_footprint):
+    """surface_points (resting rows on the other body's surface): no vertex of the box moves
+    10 µm. Without the rule, pairs of the box's side faces with the block's side faces around
+    the corners measure the box's sink sideways, and those rows push it 1.5 cm sideways and
+    tilt it."""
+    assert box_on_its_own_footprint["moved"] < 1e-5
+
+
+def test_next_vertex_keeps_the_box_on_its_footprint_where_it_was_set(box_on_its_own_footprint):
+    """next_vertex: no vertex of the box moves 10 µm. A touching row gives way to the next
+    vertex of its triangle over the face; without the rule it is simply dropped, the box keeps
+    fewer supports than it rests on, and it tilts (56 µm)."""
+    assert box_on_its_own_footprint["moved"] < 1e-5
+
+
+def test_duplicates_leave_a_box_resting_flat_on_a_free_box_still():
+    """duplicates: a 0.6 × 0.3 × 0.6 m box set 0.1 mm above a free 1 m box on the ground comes to
+    rest: over the second half of 0.4 s the kinetic energy stays below 1e-15 J (seen: 9e-27).
+    A corner shared by several triangles is reported by each triangle pair; without the rule
+    every copy is a row, the point weighs several times in the Gauss-Seidel sweeps, the result
+    depends on the triangulation, and the box keeps turning (6e-10 J)."""
+    result = run([{"name": "ground", "kind": "static", "shape": "ground"},
+                  box("low", (1.0, 1.0, 1.0), (0.0, 0.5, 0.0)),
+                  box("top", (0.6, 0.3, 0.6), (0.1, 1.15 + 1e-4, -0.1))], frames=40)
+    assert result["energy"] < 1e-15
+
+
+def test_nearest_exit_holds_a_box_overhanging_a_block_edge():
+    """nearest_exit: a box resting with 0.15 m of its 0.4 m past a block's edge (its centre of
+    mass over the block) stays within 10 µm over 0.4 s. Without the rule, once it sinks into the
+    top face, its end faces cross the block's side face and the rows of those pairs push it
+    sideways: it slides off the edge (5 cm in 0.4 s)."""
+    result = run([box("block", (1.0, 0.2, 1.0), (0.0, -0.1, 0.0), "static"),
+                  box("box", (0.4, 0.2, 0.4), (0.35, 0.1, 0.0))], frames=40)
+    assert result["moved"] < 1e-5
+
+
+def test_shock_propagation_keeps_a_heavy_box_from_driving_a_light_one_into_the_ground():
+    """shock_propagation: a 640 kg box resting on a 1.6 kg box on the ground (mass ratio 400):
+    neither goes 10 µm into anything (without the rule, Gauss-Seidel cannot carry the heavy
+    box's weight down through the light one in a substep's sweeps: both sink 0.1 m into the
+    ground in 0.3 s)."""
+    result = run([box("ground", (2.0, 0.2, 2.0), (0.0, -0.1, 0.0), "static"),
+                  box("light", (0.4, 0.1, 0.4), (0.0, 0.05, 0.0), density=10.0),
+                  box("heavy", (0.4, 0.4, 0.4), (0.0, 0.3, 0.0), density=10000.0)], frames=30)
+    assert result["depth"] < 1e-5
+    assert result["moved"] < 1e-5
+
+
+def test_surface_points_hold_a_box_resting_on_a_free_box():
+    """surface_points (grazing rows between moving bodies, held on the surface): a 1 m box set
+    0.1 mm above a free box of its size, 0.2 m off centre and turned 7°, comes to rest: over the
+    second half of 0.6 s the kinetic energy stays below 1e-4 J and no vertex has moved 1 mm.
+    Without the rule, pairs of the boxes' side faces measured from one box's corner push the
+    upper box sideways every substep: it jitters with ~9 J and moves 4 cm."""
+    result = run([{"name": "ground", "kind": "static", "shape": "ground"},
+                  {"name": "low", "kind": "rigid", "shape": "box", "position": [0.0, 0.5, 0.0]},
+                  {"name": "top", "kind": "rigid", "shape": "box", "position": [0.2, 1.5001, 0.0],
+                   "rotation": [0.0, 7.0, 0.0]}], frames=60)
+    assert result["energy"] < 1e-4
+    assert result["moved"] < 1e-3
+
+
+def test_carried_rows_hold_a_spike_lying_on_both_rims_of_a_groove():
+    """carried_rows: a spike at rest lying along a groove on both of its rims (the pose it came
+    to rest in, tests/data/spike_on_groove_rims.obj) stays at rest: over the second half of 0.4 s
+    its kinetic energy stays below 1e-9 J and it goes no deeper than 1 µm into the block.
+    Without the rule, detection finds only the rim the predicted pose crosses; pushed off it, the
+    spike ends each substep inside the other rim and rocks between them with ~4 J, 70 µm deep."""
+    result = run([{"name": "crack", "kind": "static", "shape": "crack_block"},
+                  {"name": "spike", "kind": "rigid", "mesh": str(DATA / "spike_on_groove_rims.obj")}], frames=40)
+    assert result["energy"] < 1e-9
+    assert result["depth"] < 1e-6
