@@ -5,6 +5,7 @@ The flight test runs again in Taichi's debug mode in the slow suite (bounds chec
 soft kernels); the damping and impact tests run whole scenes without it (`f64_scene`)."""
 
 import numpy as np
+import pytest
 
 from taichi_dcd.scene.config import scene_from_dict
 from taichi_dcd.scene.scene import Scene
@@ -142,7 +143,28 @@ def soft_cube_on_block(size: float, broad_phase: str = "auto") -> Scene:
          "position": [0.0, -0.1, 0.0]}]}, name="soft cube"), broad_phase=broad_phase)
 
 
-def test_soft_cube_dropped_on_a_block_rests_on_its_face_without_sinking(f64_scene):
+@pytest.fixture(scope="module")
+def soft_cube_run():
+    """The 0.2 m soft cube dropped on the block, 300 frames on the all-pairs path: its vertices
+    after 20, 40 and 60 frames, and at the end its mesh, its rest mesh, its particles' largest
+    speed and the overlap by the independent measure (one run for the two tests below)."""
+    import taichi_dcd
+
+    taichi_dcd.init(arch="cpu", precision="f64", debug=False)
+    scene = soft_cube_on_block(0.2, "brute")
+    rest = scene.body_mesh("cube")
+    landing = []
+    for _ in range(3):
+        scene.step(20)
+        landing.append(scene.body_vertices("cube").copy())
+    scene.step(240)
+    b = scene.model.bodies[scene.model.body_index("cube")]
+    v = scene.state.vertex_v.to_numpy()[b.vertex_start:b.vertex_start + b.vertex_count]
+    return {"landing": landing, "rest": rest, "mesh": scene.body_mesh("cube"),
+            "speed": float(np.linalg.norm(v, axis=1).max()), "overlap": scene.penetration().volume}
+
+
+def test_soft_cube_dropped_on_a_block_rests_on_its_face_without_sinking(soft_cube_run):
     """A damped soft 0.2 m cube (each face split twice: 25 vertices on its bottom face) dropped
     5 cm onto a static block comes to rest: every particle slower than 1e-3 m/s after 3 s,
     its bottom face on the block's top (no bottom vertex below y = 0 by more than 1e-5 of
@@ -152,31 +174,25 @@ def test_soft_cube_dropped_on_a_block_rests_on_its_face_without_sinking(f64_scen
     contact rule pressed_through the face's inner vertices sink (seen: 8 cm, 2-4 mm when the
     rule was added) and jitter."""
     size = 0.2
-    scene = soft_cube_on_block(size)
-    rest = scene.body_mesh("cube")
-    scene.step(300)
-    mesh = scene.body_mesh("cube")
-    b = scene.model.bodies[scene.model.body_index("cube")]
-    v = scene.state.vertex_v.to_numpy()[b.vertex_start:b.vertex_start + b.vertex_count]
-    assert np.linalg.norm(v, axis=1).max() < 1e-3
+    rest, mesh = soft_cube_run["rest"], soft_cube_run["mesh"]
+    assert soft_cube_run["speed"] < 1e-3
     bottom = mesh.vertices[rest.vertices[:, 1] < rest.vertices[:, 1].min() + 1e-9]
     assert len(bottom) == 25
     assert bottom[:, 1].min() >= -1e-5 * size
     assert bottom[:, 1].max() <= 1e-4 * size  # seen: one vertex 4 µm up, the rest at 0
-    assert scene.penetration().volume <= 1e-12
+    assert soft_cube_run["overlap"] <= 1e-12
     assert abs(mesh.volume - rest.volume) <= 0.02 * rest.volume
 
 
-def test_grid_path_lands_the_soft_cube_as_the_all_pairs_path_does(f64_scene):
+def test_grid_path_lands_the_soft_cube_as_the_all_pairs_path_does(soft_cube_run):
     """Large scenes take the uniform grid: it must keep the pressed-through pairs and see the
     sagged patch (soft triangles' boxes grown by a margin) as the all-pairs path does. Through
     the landing both move the cube's vertices identically (seen: equal to the last bit)."""
-    grid, brute = soft_cube_on_block(0.2, "grid"), soft_cube_on_block(0.2, "brute")
-    assert grid.solver.use_grid and not brute.solver.use_grid
-    for _ in range(3):
+    grid = soft_cube_on_block(0.2, "grid")
+    assert grid.solver.use_grid
+    for brute_vertices in soft_cube_run["landing"]:
         grid.step(20)
-        brute.step(20)
-        np.testing.assert_allclose(grid.body_vertices("cube"), brute.body_vertices("cube"), atol=1e-9)
+        np.testing.assert_allclose(grid.body_vertices("cube"), brute_vertices, atol=1e-9)
     assert grid.body_vertices("cube")[:, 1].min() >= -1e-6  # landed (at 0.1 s) and not sunk
 
 
