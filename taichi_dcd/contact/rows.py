@@ -82,10 +82,8 @@ class ContactConstraints(GrowableBuffer):
         self.block_rows = ti.ndarray(ti.i32, shape=capacity)
 
     def arrays(self) -> tuple:
-        """The ndarrays in the order the solver's kernels take them."""
-        return (self.tri, self.bary_moved, self.bary_other, self.normal, self.budget,
-                self.lambda_n, self.lambda_t, self.vn0, self.impulse_t,
-                self.block_lever, self.block_slip, self.block_gap, self.block_k, self.block_rows)
+        """The ndarrays in the order the solver's kernels take them (ContactRows' fields)."""
+        return tuple(getattr(self, name) for name in ContactRows._fields)
 
 
 @ti.func

@@ -37,7 +37,6 @@ class SolverFields:
             self.body_lo = vec_field(m.n_bodies)
             self.body_hi = vec_field(m.n_bodies)
             self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
-            self.volume_lambda = scalar_field(m.n_bodies)
             self.body_level = scalar_field(m.n_bodies, ti.i32)
             # The last contact row whose moved triangle belongs to each body (-1: none); each
             # row links to the one before it (ContactConstraints.tri), for is_duplicate.
