@@ -43,6 +43,18 @@ def build_parser() -> argparse.ArgumentParser:
     collide.add_argument("--precision", choices=["f32", "f64"], default="f64", help="kernel float type (default f64)")
     collide.add_argument("--arch", choices=["cpu", "cuda", "vulkan"], default="cpu", help="Taichi backend (default cpu)")
     sub.add_parser("list", help="list the built-in scenes", description="List the built-in scenes, one line each.")
+    union = sub.add_parser(
+        "union",
+        help="write the solid covered by a mesh's overlapping parts (fixes a self-intersecting mesh)",
+        description="Read MESH (any format trimesh reads), join its connected parts into one solid by "
+                    "a boolean union (manifold3d) and write it to OUT. This is the fix for a mesh made "
+                    "of parts that overlap, such as two boxes saved into one OBJ: as given, its "
+                    "volume, mass and inertia count the overlap twice. A part whose own triangles "
+                    "cross cannot be fixed this way. OUT is never overwritten unless --force.",
+    )
+    union.add_argument("mesh", help="the mesh file to fix")
+    union.add_argument("out", help="the file to write (its extension picks the format, e.g. .obj)")
+    union.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     run = sub.add_parser(
         "run",
         help="simulate a scene and write frames, final meshes and metrics",
@@ -282,6 +294,49 @@ def _cmd_list(args) -> int:
     return 0
 
 
+def _cmd_union(args) -> int:
+    from pathlib import Path
+
+    import trimesh
+
+    from .measure.self_intersection import crossing_pairs
+    from .scene.mesh_check import checked_mesh, union_of_parts
+
+    source, out = Path(args.mesh), Path(args.out)
+    if not source.is_file():
+        print(f"taichi-dcd: error: mesh file {source} does not exist", file=sys.stderr)
+        return 2
+    if out.exists() and (not args.force or out.resolve() == source.resolve()):
+        why = "is the input" if out.resolve() == source.resolve() else "exists (use --force to overwrite it)"
+        print(f"taichi-dcd: error: {out} {why}", file=sys.stderr)
+        return 2
+    try:
+        given = trimesh.load(source, force="mesh", process=False)
+        mesh, _ = checked_mesh(source.stem, given.vertices, given.faces, str(source))
+    except Exception as exc:  # noqa: BLE001 — trimesh raises many types for unparsable files
+        print(f"taichi-dcd: error: cannot use {source}: {exc}", file=sys.stderr)
+        return 2
+    if len(crossing_pairs(mesh.vertices, mesh.faces)) == 0:
+        print(f"taichi-dcd: {source}: no two of its triangles cross; nothing to fix, nothing written",
+              file=sys.stderr)
+        return 0
+    solid = union_of_parts(mesh)
+    if solid is None:
+        print(f"taichi-dcd: error: {source}: no union of its parts removes its crossings (it is one part, "
+              "or a part crosses itself); repair it in a modeller", file=sys.stderr)
+        return 2
+    partial = out.with_name(out.name + ".partial" + out.suffix)
+    try:
+        solid.export(partial)
+        os.replace(partial, out)
+    except (OSError, ValueError) as exc:
+        partial.unlink(missing_ok=True)
+        print(f"taichi-dcd: error: cannot write {out}: {exc}", file=sys.stderr)
+        return 2
+    print(f"{out}: {len(solid.faces)} triangles, volume {solid.volume:.6g} (as given: {mesh.volume:.6g})")
+    return 0
+
+
 def _cmd_collide(args) -> int:
     import numpy as np
 
@@ -331,5 +386,7 @@ def _dispatch(parser, args) -> int:
         return _cmd_list(args)
     if args.command == "sweep":
         return _cmd_sweep(args)
+    if args.command == "union":
+        return _cmd_union(args)
     parser.error(f"unknown command {args.command!r}")
     return 2

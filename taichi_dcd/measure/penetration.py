@@ -205,19 +205,26 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
     return best, volume
 
 
-def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetration:
-    """The deepest pair and the total overlap volume over pairs of bodies (name, kind,
-    world mesh) that are not both static."""
-    result = Penetration()
+def body_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]]):
+    """(name_a, name_b, depth m, overlap volume m³) for every pair of bodies (name, kind, world
+    mesh) that are not both static, in order (pair_penetration)."""
     for i in range(len(bodies)):
         for j in range(i + 1, len(bodies)):
             (name_a, kind_a, a), (name_b, kind_b, b) = bodies[i], bodies[j]
             if kind_a == "static" and kind_b == "static":
                 continue
             depth, volume = pair_penetration(a, b)
-            result.volume += volume
-            if depth > result.depth or (result.pair is None and volume > 0):
-                result.depth, result.pair = depth, (name_a, name_b)
+            yield name_a, name_b, depth, volume
+
+
+def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetration:
+    """The deepest pair and the total overlap volume over pairs of bodies (name, kind,
+    world mesh) that are not both static."""
+    result = Penetration()
+    for name_a, name_b, depth, volume in body_pairs(bodies):
+        result.volume += volume
+        if depth > result.depth or (result.pair is None and volume > 0):
+            result.depth, result.pair = depth, (name_a, name_b)
     return result
 
 

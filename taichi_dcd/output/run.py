@@ -299,6 +299,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "error": error or ("interrupted" if interrupted else None),
         "final_kinetic_energy": final[3],
         "energy_drift": energy_drift(energy_start, [r[3] for r in rows], [r[4] for r in rows]),
+        "start_overlaps": scene.start_overlaps,
         "contact_buffer_growths": scene.solver.contact_growths,
         "frames_with_extra_substeps": scene.fast_frames,
         "most_substeps_in_a_frame": scene.most_substeps,

@@ -18,6 +18,7 @@ from ..core import runtime
 from ..contact.hidden_faces import hidden_static_faces
 from ..core.model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
 from ..solver.tunnelling import mesh_thickness
+from .mesh_check import checked_mesh
 
 DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
 
@@ -50,88 +51,6 @@ class BodySpec:
     source: str | None = None  # the mesh file, named in error messages
 
 
-def checked_mesh(name: str, vertices, faces, source: str | None = None) -> tuple[trimesh.Trimesh, list[str]]:
-    """The body's mesh, checked and, where the repair is safe and standard, repaired.
-
-    Returns (mesh, warnings): duplicate vertices are merged silently; duplicate faces are
-    dropped, inconsistent winding is made consistent and an inward mesh is turned outward,
-    each with a one-line warning saying what changed. Raises a one-line ValueError naming the
-    body (and `source`, its file) for: non-numeric or non-finite coordinates, face indices out
-    of range, an empty mesh, zero-area faces, a mesh that is not closed, or winding that
-    cannot be made consistent."""
-    label = f"body {name!r}" + (f" ({source})" if source else "")
-    try:
-        v = np.asarray(vertices, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{label}: vertices must be a numeric (n, 3) array") from None
-    f = np.asarray(faces)
-    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
-        raise ValueError(f"{label}: the mesh is empty or its vertices are not an (n, 3) array (shape {v.shape})")
-    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or not np.issubdtype(f.dtype, np.integer):
-        raise ValueError(f"{label}: the mesh has no triangles or its faces are not an integer (m, 3) array "
-                         f"(shape {f.shape})")
-    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
-    if len(bad):
-        raise ValueError(f"{label}: vertex {bad[0]} has a NaN or infinite coordinate")
-    if f.min() < 0 or f.max() >= len(v):
-        raise ValueError(f"{label}: face indices must lie in [0, {len(v)}), got {f.min()}..{f.max()}")
-    warnings = []
-    mesh = trimesh.Trimesh(v, f, process=True, validate=False)
-    unique = trimesh.grouping.unique_rows(np.sort(mesh.faces, axis=1))[0]
-    if len(unique) < len(mesh.faces):
-        dropped = len(mesh.faces) - len(unique)
-        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces[np.sort(unique)], process=False)
-        warnings.append(f"{label}: dropped {dropped} duplicate face{'s' if dropped > 1 else ''}")
-    area = mesh.area_faces
-    zero = np.flatnonzero(area <= 1e-300)
-    if len(zero):
-        raise ValueError(f"{label}: face {zero[0]} has zero area ({len(zero)} such face{'s' if len(zero) > 1 else ''})")
-    if not mesh.is_watertight:
-        edges = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
-        raise ValueError(f"{label}: mesh is not closed ({len(edges)} boundary edges)")
-    if not mesh.is_winding_consistent:
-        mesh = trimesh.Trimesh(mesh.vertices, consistent_winding(mesh), process=False)
-        if not mesh.is_winding_consistent:
-            raise ValueError(f"{label}: mesh winding is inconsistent and could not be repaired")
-        warnings.append(f"{label}: made the faces' winding consistent")
-    if not mesh.volume > 0.0:
-        mesh.invert()
-        warnings.append(f"{label}: the mesh was oriented inward; turned it outward")
-    return mesh, warnings
-
-
-def consistent_winding(mesh: trimesh.Trimesh) -> np.ndarray:
-    """The faces (m, 3) reordered so that every edge shared by two faces runs in opposite
-    directions in them (breadth-first from face 0 of each connected piece, flipping a
-    neighbour that disagrees). A non-orientable mesh stays inconsistent."""
-    faces = np.asarray(mesh.faces).copy()
-    pairs, edges = np.asarray(mesh.face_adjacency), np.asarray(mesh.face_adjacency_edges)
-    neighbours = [[] for _ in range(len(faces))]
-    for (f, g), edge in zip(pairs, edges):
-        neighbours[f].append((g, edge))
-        neighbours[g].append((f, edge))
-
-    def runs_forward(face, a, b) -> bool:
-        i = list(face).index(a)
-        return face[(i + 1) % 3] == b
-
-    done = np.zeros(len(faces), bool)
-    for seed in range(len(faces)):
-        if done[seed]:
-            continue
-        done[seed] = True
-        queue = [seed]
-        while queue:
-            f = queue.pop()
-            for g, (a, b) in neighbours[f]:
-                if not done[g]:
-                    if runs_forward(faces[f], a, b) == runs_forward(faces[g], a, b):
-                        faces[g] = faces[g][::-1]
-                    done[g] = True
-                    queue.append(g)
-    return faces
-
-
 class ModelBuilder:
     """Collects bodies as numpy data; `finalize()` allocates the Model and State once."""
 
@@ -156,7 +75,7 @@ class ModelBuilder:
             raise ValueError(f"body {spec.name!r}: drag must be >= 0, got {spec.drag}")
         if not spec.spin_friction >= 0.0:
             raise ValueError(f"body {spec.name!r}: spin_friction must be >= 0, got {spec.spin_friction}")
-        mesh, warnings = checked_mesh(spec.name, spec.vertices, spec.faces, spec.source)
+        mesh, warnings = checked_mesh(spec.name, spec.vertices, spec.faces, spec.source, spec.kind)
         self.meshes.append(mesh)
         self.warnings += warnings
         self.specs.append(spec)

@@ -16,6 +16,7 @@ from ..core import runtime
 from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from ..core.model import RIGID, SOFT, STATIC
+from ..measure.penetration import body_pairs, scene_penetration
 from .shapes import make_shape
 from ..solver.tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
 
@@ -85,6 +86,12 @@ class Scene:
         self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
                                  length_scale=config.sim.length_scale, rules=rules)
+        # Bodies placed into each other: the independent measure's pairs deeper than rounding.
+        self.start_overlaps = [
+            {"bodies": [a, b], "depth": depth, "volume": volume}
+            for a, b, depth, volume in body_pairs(self._world_bodies(self.vertices()))
+            if depth > START_OVERLAP_DEPTH * config.sim.length_scale]
+        self.warnings += start_overlap_warnings(self.start_overlaps, self.solver.depenetration_speed)
         self.fast_frames = 0                  # frames run with more substeps than configured
         self.most_substeps = config.sim.substeps
         self.fast_notice: str | None = None   # why, the first time it happened
@@ -276,13 +283,14 @@ class Scene:
     def penetration(self, vertices: np.ndarray | None = None):
         """Penetration measured from the current meshes alone (metrics.scene_penetration);
         `vertices` (V, 3) if the caller already read them."""
-        from ..measure.penetration import scene_penetration
-
         x = self.vertices() if vertices is None else vertices
-        return scene_penetration([
-            (b.name, b.kind, trimesh.Trimesh(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces,
-                                             process=False))
-            for b in self.model.bodies])
+        return scene_penetration(self._world_bodies(x))
+
+    def _world_bodies(self, x: np.ndarray) -> list[tuple[str, str, trimesh.Trimesh]]:
+        """(name, kind, mesh at the vertices x (V, 3)) of every body."""
+        return [(b.name, b.kind, trimesh.Trimesh(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces,
+                                                 process=False))
+                for b in self.model.bodies]
 
     def contact_points(self) -> np.ndarray:
         """(n, 3) world positions of the last substep's contacts (the moved triangles' points)."""
@@ -322,6 +330,25 @@ def precision_warnings(model, vertices: np.ndarray, sim) -> list[str]:
                 f"against a settle speed of {sim.settle_speed:.0e} m/s: this scene may never settle or "
                 "may keep a visible depth; use --precision f64"]
     return []
+
+
+# Bodies that start deeper than this (m, times length_scale) in each other get a warning.
+START_OVERLAP_DEPTH = 1e-6
+START_OVERLAP_LINES = 5  # pairs named one by one; the rest are counted
+
+
+def start_overlap_warnings(overlaps: list[dict], depenetration_speed: float) -> list[str]:
+    """One line per pair of bodies that overlap at the start (Scene.start_overlaps), saying
+    what the solver will do with it (docs/scene-format.md, 'Bad input')."""
+    lines = [f"bodies {o['bodies'][0]!r} and {o['bodies'][1]!r} overlap at the start, {o['depth']:.2e} m deep "
+             f"({o['volume']:.2e} m³): the solver undoes such depth gradually (at most {depenetration_speed:.2g} m/s "
+             "per contact, without launching the bodies) and may never part them where the overlap is bounded "
+             "by faces lying in each other's planes (two aligned boxes pushed into each other); move them "
+             "apart in the scene file"
+             for o in overlaps[:START_OVERLAP_LINES]]
+    if len(overlaps) > START_OVERLAP_LINES:
+        lines.append(f"{len(overlaps) - START_OVERLAP_LINES} more pairs of bodies overlap at the start")
+    return lines
 
 
 def quat_to_matrix(q) -> np.ndarray:

@@ -68,8 +68,15 @@ GRID_SKIN = 0.1
 # times √length_scale: motions of a scene scaled by L are √L as fast): pushing it out in
 # one substep turns it into a launch velocity of depth/h.
 DEPENETRATION_SPEED = 0.2
-# A body's or particle's coordinate beyond this many metres counts as an explosion.
-DEFAULT_BOUND = 1e6
+# A body has exploded when it moves more than this many scene sizes (the diagonal of the
+# box around every body at the start) in one frame, and has left the scene when it is this many
+# sizes from the start box's centre. Judged by motion, not by absolute coordinates: a scene
+# placed at x = 1e9 m is not an explosion.
+EXPLOSION_SIZES_PER_FRAME = 100.0
+LEFT_SCENE_SIZES = 1e6
+# ... but no speed below this (m/s, times √length_scale) counts as an explosion, so that a lone
+# small body may fall for as long as a scene runs (a fall from 5 km ends at ~310 m/s).
+EXPLOSION_SPEED_FLOOR = 1e4
 # _frames_all_pairs's status when the next frame needs more substeps than it was given (not begun),
 # and when a frame's contacts overflowed the buffer (undone).
 NEEDS_CHOICE = 1
@@ -77,7 +84,7 @@ OVERFLOW = 2
 
 
 class SimulationError(RuntimeError):
-    """The simulation produced NaN or left the bounds; message names frame and body."""
+    """The simulation produced NaN, a body exploded or left the scene; the message names the body."""
 
 
 @ti.data_oriented
@@ -90,18 +97,25 @@ class XPBDSolver:
     overflows it (the frame is then rerun from its start, so no contact is lost).
     length_scale: the scene's size relative to metre-sized bodies (SimConfig.length_scale);
     the depenetration speed scales with its square root. rules: the contact rules compiled
-    in (contact.rules.ContactRules; all by default).
+    in (contact.rules.ContactRules; all by default). bound: how far (m) from the centre of the
+    bodies' start box a body may go before it counts as having left the scene (default
+    LEFT_SCENE_SIZES scene sizes).
     """
 
     def __init__(self, model: Model, state: State, gravity=(0.0, -9.8, 0.0), broad_phase: str = "auto",
-                 contact_capacity: int | None = None, bound: float = DEFAULT_BOUND, length_scale: float = 1.0,
+                 contact_capacity: int | None = None, bound: float | None = None, length_scale: float = 1.0,
                  rules: ContactRules | None = None):
         runtime.ensure_init()
         self.model = model
         self.state = state
         self.gravity = np.asarray(gravity, dtype=np.float64).reshape(3)
-        self.bound = float(bound)
+        x0 = state.vertex_x.to_numpy().astype(np.float64)
+        lo, hi = (x0.min(axis=0), x0.max(axis=0)) if len(x0) else (np.zeros(3), np.zeros(3))
+        self.scene_centre = 0.5 * (lo + hi)
+        self.scene_size = float(np.linalg.norm(hi - lo)) or 1.0
+        self.bound = float(bound) if bound is not None else LEFT_SCENE_SIZES * self.scene_size
         self.depenetration_speed = DEPENETRATION_SPEED * float(np.sqrt(length_scale))
+        self.speed_floor = EXPLOSION_SPEED_FLOOR * float(np.sqrt(length_scale))
         m = model
         kind = m.body_kind_np
         tri_counts = np.array([b.tri_count for b in m.bodies])
@@ -139,7 +153,8 @@ class XPBDSolver:
 
     @ti.kernel
     def _frames_all_pairs(self, frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
-                          first_kick: float, bound: float, depenetration: float, check: ti.i32, max_impact: float,
+                          first_kick: float, centre: vec3, bound: float, top_speed: float, depenetration: float,
+                          check: ti.i32, max_impact: float,
                           thinnest: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                           c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                           c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -185,7 +200,7 @@ class XPBDSolver:
                 else:
                     for i in range(ti.static(self.model.n_vertices)):
                         place_vertex(self.sim, i)
-                    status = state_is_sane(self.sim, bound)
+                    status = state_is_sane(self.sim, centre, bound, top_speed)
                     done += 1
         return ti.Vector([done, most, n, status])
 
@@ -199,8 +214,8 @@ class XPBDSolver:
             vertex_nd[i] = self.state.vertex_x[i]
 
     @ti.kernel
-    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, bound: float, depenetration: float,
-                     n_pairs: ti.i32,
+    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
+                     top_speed: float, depenetration: float, n_pairs: ti.i32,
                      p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
                      p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
                      p_point: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -227,7 +242,7 @@ class XPBDSolver:
             n = substep_from_pairs(self.sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
             for i in range(ti.static(self.model.n_vertices)):
                 place_vertex(self.sim, i)
-            status = state_is_sane(self.sim, bound)
+            status = state_is_sane(self.sim, centre, bound, top_speed)
         return ti.Vector([n, status])
 
     # ----------------------------------------------------------------- python
@@ -241,7 +256,7 @@ class XPBDSolver:
                    max_impact_motion: float | None = None) -> int | None:
         """Advance the state by frame_dt seconds in `substeps` substeps of `iterations`
         Gauss-Seidel sweeps. Returns the contact count of the last substep. Raises
-        SimulationError (naming the body) on NaN or a body beyond the bound.
+        SimulationError (naming the body) on NaN, explosion or a body that left the scene.
 
         With max_impact_motion (m), the frame first checks that `substeps` are enough by the
         rules of Scene._substeps_for_next_frame and returns None, the state untouched, if
@@ -260,6 +275,8 @@ class XPBDSolver:
         if substeps < 1 or iterations < 1 or not frame_dt > 0:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
+        centre = ti.Vector(list(self.scene_centre))
+        top_speed = max(EXPLOSION_SIZES_PER_FRAME * self.scene_size / frame_dt, self.speed_floor)
         done = 0
         count = self.last_contact_count
         status = 0
@@ -268,7 +285,7 @@ class XPBDSolver:
                 return 0, count
             for done in range(1, frames + 1):
                 first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
-                count, status = self._step_grid(h, substeps, iterations, first_kick)
+                count, status = self._step_grid(h, substeps, iterations, first_kick, top_speed)
                 self._frames_advanced(1, frame_dt, substeps, count)
                 if status != 0:
                     break
@@ -278,7 +295,7 @@ class XPBDSolver:
             while done < frames:
                 first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
                 ran, most, count, status = (int(v) for v in self._frames_all_pairs(
-                    frames - done, substeps, iterations, h, gravity, first_kick, self.bound,
+                    frames - done, substeps, iterations, h, gravity, first_kick, centre, self.bound, top_speed,
                     self.depenetration_speed, check, max_impact_motion or 0.0, self.thinnest,
                     *self.contacts.arrays()))
                 done += ran
@@ -288,10 +305,29 @@ class XPBDSolver:
                 self.contacts.grow(most)
                 self.contact_growths += 1
         if status < 0:
-            body = self.model.bodies[-1 - status].name
-            raise SimulationError(f"body {body!r} has a NaN or exploded (|x| or |v| above {self.bound:g}) "
-                                  f"by t = {self.state.time:.4g} s")
+            raise SimulationError(f"{self._failure(-1 - status, top_speed)} by t = {self.state.time:.4g} s")
         return done, count
+
+    def _failure(self, b: int, top_speed: float) -> str:
+        """What state_is_sane found wrong with body b, in words."""
+        info = self.model.bodies[b]
+        if info.kind == "rigid":
+            x = self.state.body_x.to_numpy()[b:b + 1].astype(np.float64)
+            v = self.state.body_v.to_numpy()[b:b + 1].astype(np.float64)
+        else:
+            span = slice(info.vertex_start, info.vertex_start + info.vertex_count)
+            x = self.state.vertex_x.to_numpy()[span].astype(np.float64)
+            v = self.state.vertex_v.to_numpy()[span].astype(np.float64)
+        if not (np.isfinite(x).all() and np.isfinite(v).all()):
+            return f"body {info.name!r} has a NaN (its state is no longer finite)"
+        speed = float(np.linalg.norm(v, axis=1).max())
+        if speed > top_speed:
+            return (f"body {info.name!r} exploded (it moves at {speed:.2g} m/s, more than "
+                    f"{EXPLOSION_SIZES_PER_FRAME:g} scene sizes of {self.scene_size:.3g} m per frame and "
+                    f"{self.speed_floor:.2g} m/s)")
+        away = float(np.abs(x - self.scene_centre).max())
+        return (f"body {info.name!r} left the scene ({away:.3g} m from where the bodies started, more than "
+                f"{self.bound:.3g} m)")
 
     def _frames_advanced(self, frames: int, frame_dt: float, substeps: int, count: int) -> None:
         for _ in range(frames):  # time as a sum of frames, as if stepped one by one
@@ -300,7 +336,8 @@ class XPBDSolver:
             self.state.time += frame_dt
             self.last_contact_count = count
 
-    def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float) -> tuple[int, int]:
+    def _step_grid(self, h: float, substeps: int, iterations: int, first_kick: float,
+                   top_speed: float) -> tuple[int, int]:
         gravity = ti.Vector(list(self.gravity))
         g_norm = float(np.linalg.norm(self.gravity))
         n = status = 0
@@ -320,7 +357,8 @@ class XPBDSolver:
                 self.contacts.grow(wanted)
                 self.contact_growths += 1
             n, status = (int(v) for v in self._end_substep(
-                iterations, h, g_norm, self.bound, self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
+                iterations, h, g_norm, ti.Vector(list(self.scene_centre)), self.bound, top_speed,
+                self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                 *self.contacts.arrays()))
             if timing is not None:
                 timing["projection"] = timing.get("projection", 0.0) + time.perf_counter() - start

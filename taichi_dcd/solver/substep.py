@@ -165,16 +165,17 @@ def restore_state(sim: ti.template()):
 
 
 @ti.func
-def state_is_sane(sim: ti.template(), bound: float) -> ti.i32:
-    """-1 - (index of the first body) whose state is NaN or beyond `bound`, else 0."""
+def state_is_sane(sim: ti.template(), centre: vec3, bound: float, top_speed: float) -> ti.i32:
+    """-1 - (index of the first body) whose state is NaN, faster than `top_speed` (m/s) or
+    farther than `bound` (m) from `centre` along an axis, else 0."""
     bad = 0
     for b in range(ti.static(sim.model.n_bodies)):
-        ok = ti.abs(sim.state.body_x[b]).max() <= bound and ti.abs(sim.state.body_v[b]).max() <= bound
+        ok = ti.abs(sim.state.body_x[b] - centre).max() <= bound and sim.state.body_v[b].norm() <= top_speed
         if bad == 0 and not ok:
             bad = -1 - b
     if ti.static(sim.model.has_soft):
         for i in range(ti.static(sim.model.n_vertices)):
-            ok = ti.abs(sim.state.vertex_x[i]).max() <= bound and ti.abs(sim.state.vertex_v[i]).max() <= bound
+            ok = ti.abs(sim.state.vertex_x[i] - centre).max() <= bound and sim.state.vertex_v[i].norm() <= top_speed
             if bad == 0 and not ok:
                 bad = -1 - sim.model.vertex_body[i]
     return bad

@@ -119,7 +119,8 @@ def test_exploding_run_stops_naming_frame_and_body_and_keeps_last_good_state(tmp
     (tmp_path / "thing.obj").write_text(obj(TETRA_V + TETRA_F))
     (tmp_path / "scene.toml").write_text(scene_text(sim="frames = 50", body_extra="force = [0.0, 1e12, 0.0]"))
     result = run_cli("run", "scene.toml", "--no-frames", "--quiet", "--out", "out", cwd=tmp_path)
-    assert_one_line_error(result, 1, "frame ", "body 'thing'")
+    # Judged by motion: 1e12 N makes the tetrahedron move more than 100 scene sizes a frame.
+    assert_one_line_error(result, 1, "frame ", "body 'thing' exploded", "m/s", "scene sizes")
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["complete"] is False and "thing" in metrics["error"]
     assert metrics["frames"] < 50
