@@ -42,6 +42,7 @@ from .fields import SolverFields
 from .integrate import place_vertex, predict
 from .substep import (
     restore_state,
+    rows_at_state,
     save_state,
     state_is_sane,
     substep_all_pairs,
@@ -245,7 +246,51 @@ class XPBDSolver:
             status = state_is_sane(self.sim, centre, bound, top_speed)
         return ti.Vector([n, status])
 
+    @ti.kernel
+    def _rows_at_state(self, max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                       c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                       c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                       c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                       c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                       c_vn0: ti.types.ndarray(ndim=1),
+                       c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                       b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                       b_gap: ti.types.ndarray(ndim=1),
+                       b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                       b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+        """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
+        rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                     c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+        needed = 0
+        n = 0
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            needed, n = rows_at_state(self.sim, rows, max_push)
+        return ti.Vector([needed, n])
+
     # ----------------------------------------------------------------- python
+    def contact_rows(self, h: float) -> dict:
+        """The contact rows the rules write for the current state, as a substep of length h (s)
+        would before solving them (all-pairs broad phase; the carried rows of the last substep
+        included). For inspection and tests: it replaces the last substep's rows. Returns numpy
+        arrays: moved_tri, other_tri (n,); point, target (n, 3) m, the moved and the other
+        triangle's anchor in world space; normal (n, 3), the unit direction the moved point is
+        pushed; depth (n,) m, normal·(target − point)."""
+        while True:
+            needed, n = (int(v) for v in self._rows_at_state(self.depenetration_speed * h, *self.contacts.arrays()))
+            if needed <= self.contacts.capacity:
+                break
+            self.contacts.grow(needed)
+        c = self.contacts
+        tri = c.tri.to_numpy()[:n]
+        x = self.state.vertex_x.to_numpy().astype(np.float64)
+        corners = x[self.model.tri_indices_np]
+        point = np.einsum("nk,nkd->nd", c.bary_moved.to_numpy()[:n].astype(np.float64), corners[tri[:, 0]])
+        target = np.einsum("nk,nkd->nd", c.bary_other.to_numpy()[:n].astype(np.float64), corners[tri[:, 1]])
+        normal = c.normal.to_numpy()[:n].astype(np.float64)
+        return {"moved_tri": tri[:, 0], "other_tri": tri[:, 1], "point": point, "target": target, "normal": normal,
+                "depth": np.einsum("nd,nd->n", normal, target - point)}
+
     def body_summary_numpy(self) -> np.ndarray:
         """(B, 10) float64: per body velocity (3), motion about it (1: |ω| rigid, particle speed
         soft), vertex box low (3) and high (3), at the current state."""

@@ -107,6 +107,20 @@ def substep_all_pairs(sim: ti.template(), rows: ti.template(), iterations: ti.i3
 
 
 @ti.func
+def rows_at_state(sim: ti.template(), rows: ti.template(), max_push: float):
+    """The contact rows of the current state, as a substep's first half writes them after its
+    prediction (the all-pairs broad phase, the narrow phase, every rule), without solving them.
+    Returns (rows needed, rows written)."""
+    for i in range(ti.static(sim.model.n_vertices)):
+        place_vertex(sim, i)
+    n = candidate_pairs(sim, rows)
+    wanted = n
+    n = collide_candidates(sim, rows, ti.min(n, rows.tri.shape[0]), max_push)
+    needed, n = rows_after_pairs(sim, rows, n, max_push)
+    return ti.max(wanted, needed), n
+
+
+@ti.func
 def substep_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.template(), n_pairs: ti.i32,
                        iterations: ti.i32, h: float, g_norm: float, depenetration: float) -> ti.i32:
     """The same substep after the grid's narrow phase (its n_pairs results in `pairs`, a
