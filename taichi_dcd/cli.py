@@ -312,7 +312,7 @@ def _cmd_union(args) -> int:
         return 2
     try:
         given = trimesh.load(source, force="mesh", process=False)
-        mesh, _ = checked_mesh(source.stem, given.vertices, given.faces, str(source))
+        mesh, _ = checked_mesh(source.stem, given.vertices, given.faces, str(source), crossings=False)
     except Exception as exc:  # noqa: BLE001 — trimesh raises many types for unparsable files
         print(f"taichi-dcd: error: cannot use {source}: {exc}", file=sys.stderr)
         return 2

@@ -17,17 +17,18 @@ SELF_INTERSECTION_EFFECT = {
 }
 
 
-def checked_mesh(name: str, vertices, faces, source: str | None = None,
-                 kind: str = "rigid") -> tuple[trimesh.Trimesh, list[str]]:
+def checked_mesh(name: str, vertices, faces, source: str | None = None, kind: str = "rigid",
+                 crossings: bool = True) -> tuple[trimesh.Trimesh, list[str]]:
     """The body's mesh, checked and, where the repair is safe and standard, repaired.
 
     Returns (mesh, warnings): duplicate vertices are merged silently; duplicate faces are
     dropped, inconsistent winding is made consistent and an inward mesh is turned outward,
     each with a one-line warning saying what changed; a mesh whose own triangles cross is
-    kept with a warning (self_intersection_warning). Raises a one-line ValueError naming the
-    body (and `source`, its file) for: non-numeric or non-finite coordinates, face indices out
-    of range, an empty mesh, zero-area faces, a mesh that is not closed or not manifold (the
-    edge named), or winding that cannot be made consistent."""
+    kept with a warning (self_intersection_warning; not looked for without `crossings`).
+    Raises a one-line ValueError naming the body (and `source`, its file) for: non-numeric or
+    non-finite coordinates, face indices out of range, an empty mesh, zero-area faces, a mesh
+    that is not closed or not manifold (the edge named), or winding that cannot be made
+    consistent."""
     label = f"body {name!r}" + (f" ({source})" if source else "")
     try:
         v = np.asarray(vertices, dtype=np.float64)
@@ -65,7 +66,7 @@ def checked_mesh(name: str, vertices, faces, source: str | None = None,
     if not mesh.volume > 0.0:
         mesh.invert()
         warnings.append(f"{label}: the mesh was oriented inward; turned it outward")
-    crossing = self_intersection_warning(mesh, kind, source)
+    crossing = self_intersection_warning(mesh, kind, source) if crossings else None
     if crossing:
         warnings.append(f"{label}: {crossing}")
     return mesh, warnings
