@@ -294,14 +294,7 @@ class Scene:
 
     def contact_points(self) -> np.ndarray:
         """(n, 3) world positions of the last substep's contacts (the moved triangles' points)."""
-        n = self.solver.last_contact_count
-        if n == 0:
-            return np.zeros((0, 3))
-        c = self.solver.contacts
-        tri = c.tri.to_numpy()[:n, 0]
-        bary = c.bary_moved.to_numpy()[:n].astype(np.float64)
-        corners = self.vertices()[self.model.tri_indices_np[tri]]
-        return np.einsum("nk,nkd->nd", bary, corners)
+        return self.solver.rows_numpy(self.solver.last_contact_count)["point"]
 
 
 # A scene whose coordinates f32 cannot resolve finely enough

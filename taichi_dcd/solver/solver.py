@@ -281,9 +281,13 @@ class XPBDSolver:
             if needed <= self.contacts.capacity:
                 break
             self.contacts.grow(needed)
+        return self.rows_numpy(n)
+
+    def rows_numpy(self, n: int) -> dict:
+        """The first n contact rows now in the buffer, at the current vertices (contact_rows)."""
         c = self.contacts
         tri = c.tri.to_numpy()[:n]
-        x = self.state.vertex_x.to_numpy().astype(np.float64)
+        x = self.state.vertex_x.to_numpy()[: self.model.n_vertices].astype(np.float64)
         corners = x[self.model.tri_indices_np]
         point = np.einsum("nk,nkd->nd", c.bary_moved.to_numpy()[:n].astype(np.float64), corners[tri[:, 0]])
         target = np.einsum("nk,nkd->nd", c.bary_other.to_numpy()[:n].astype(np.float64), corners[tri[:, 1]])
