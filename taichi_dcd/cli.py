@@ -284,12 +284,12 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_list(args) -> int:
-    from .scene.builtin import ALL, LARGE, describe
+    from .scene.builtin import ALL, LARGE, STACKS, describe
 
-    width = max(len(n) for n in [*ALL, *LARGE])
+    width = max(len(n) for n in [*ALL, *LARGE, *STACKS])
     for name in ALL:
         print(f"{name:<{width}}  {describe(name)}")
-    for name in LARGE:
+    for name in [*LARGE, *STACKS]:
         print(f"{name:<{width}}  {describe(name)} (not in `all`)")
     return 0
 

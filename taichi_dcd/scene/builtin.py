@@ -1,8 +1,9 @@
 """The built-in scenes: Erleben's six contact tests (Erleben 2018, "Methodology for
-assessing mesh-based contact point methods"), their variants, a soft drop and two large
-scenes. Each is a scene file shipped in `scene/files/<name>.toml`, the one source of the
-scene: `taichi-dcd run spikes` reads the same file a user could copy and edit. Its first
-line, `# <name>: <description>`, is what `taichi-dcd list` prints.
+assessing mesh-based contact point methods"), their variants, a soft drop, two large
+scenes and two of many boxes resting on each other. Each is a scene file shipped in
+`scene/files/<name>.toml`, the one source of the scene: `taichi-dcd run spikes` reads the
+same file a user could copy and edit. Its first line, `# <name>: <description>`, is what
+`taichi-dcd list` prints.
 
 Frame dt 0.01 s, gravity (0, −9.8, 0), density 1000 kg/m³, friction 0.5; the static body
 stands on a static ground slab; runs stop once every vertex has been slower than 1e-3 m/s
@@ -24,11 +25,13 @@ ALL = ["spikes", "spike-and-wedge", "wedges", "wedges-crossed", "spike-in-hole",
 ERLEBEN_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in-crack", "wedge-in-crack"]
 # Listed and run by name, left out of `all` (minutes each).
 LARGE = ["pile", "spike-in-crack-hires"]
+# Many boxes resting on each other (stack, pyramid): listed and run by name, left out of `all`.
+STACKS = ["stack", "pyramid"]
 
 
 def scene_path(name: str) -> Path:
     """The shipped file of built-in scene `name`; KeyError for an unknown name."""
-    if name not in ALL and name not in LARGE:
+    if name not in ALL and name not in LARGE and name not in STACKS:
         raise KeyError(name)
     return FILES / f"{name}.toml"
 
@@ -51,7 +54,7 @@ def builtin_scene(name: str) -> SceneConfig:
 
 def scene_config(name: str) -> SceneConfig:
     """A built-in scene's config by name, or a scene file's by path. Raises SceneError."""
-    if name in ALL or name in LARGE:
+    if name in ALL or name in LARGE or name in STACKS:
         return builtin_scene(name)
     if not name.endswith(".toml") and "/" not in name and not os.path.exists(name):
         raise SceneError(f"unknown scene {name!r}: not a built-in scene (see `taichi-dcd list`) nor a file")

@@ -1,7 +1,8 @@
-"""The large scenes (issue 6) are what they claim, without simulating them: the pile has
+"""The large scenes and the stacks are what they claim, without simulating them: the pile has
 at least 100 falling spikes and wedges over a bed of cracks and holes and at least 50k
 triangles, the high-resolution spike-in-crack at least 20k triangles in every body; both
-are listed and left out of `run all`. benchmarks/large_scenes.py runs them to rest."""
+are listed and left out of `run all`. benchmarks/large_scenes.py runs them to rest (and
+benchmarks/stacks.py the stacks)."""
 
 import numpy as np
 
@@ -47,3 +48,30 @@ def test_large_scenes_are_listed_but_not_in_all(capsys):
     out = capsys.readouterr().out
     assert "pile" in out and "spike-in-crack-hires" in out
     assert not {"pile", "spike-in-crack-hires"} & set(builtin_names())
+
+
+def test_stack_and_pyramid_set_boxes_a_hair_apart_on_the_ground():
+    """`stack`: ten 0.4 x 0.2 x 0.4 m boxes, each 1e-5 m above the one below (the lowest 1e-5 m
+    above the ground), none overlapping. `pyramid`: rows of 5-4-3-2-1 such boxes, the boxes of a
+    row touching side to side, each row centred on the one below and 1e-5 m above it. Both are
+    listed and left out of `run all`; benchmarks/stacks.py runs them."""
+    from taichi_dcd.measure.penetration import scene_penetration
+
+    for name, rows in (("stack", [1] * 10), ("pyramid", [5, 4, 3, 2, 1])):
+        config, ms = meshes(name)
+        assert config.bodies[0].kind == "static" and all(b.kind == "rigid" for b in config.bodies[1:])
+        boxes = ms[1:]
+        assert len(boxes) == sum(rows)
+        assert np.allclose([m.extents for m in boxes], [0.4, 0.2, 0.4])
+        start = 0
+        for level, count in enumerate(rows):
+            row = sorted(boxes[start:start + count], key=lambda m: m.bounds[0][0])
+            start += count
+            for m in row:
+                assert abs(m.bounds[0][1] - (1e-5 + level * (0.2 + 1e-5))) < 1e-12
+            for left, right in zip(row, row[1:]):
+                assert abs(right.bounds[0][0] - left.bounds[1][0]) < 1e-12  # side faces touching
+            assert abs(np.mean([m.centroid[0] for m in row])) < 1e-12
+        bodies = [(b.name, b.kind, m) for b, m in zip(config.bodies, ms)]
+        assert scene_penetration(bodies).depth < 1e-12  # touching side faces: rounding only
+        assert name not in builtin_names()
