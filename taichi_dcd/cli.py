@@ -190,25 +190,31 @@ def _cmd_run(args) -> int:
 
         from .output.run import MANIFEST, manifest_files, write_json_atomic
 
+        from .output.report import INDEX, write_index
+
         root = Path(args.out) if args.out else Path("outputs")
-        sheet = root / "contact-sheet.png"
-        if sheet.exists() and sheet.name not in manifest_files(root):
-            print(f"taichi-dcd: error: {sheet} was not written by this tool and would be overwritten; "
-                  "choose another --out", file=sys.stderr)
-            return 2
+        sheet, index = root / "contact-sheet.png", root / INDEX
+        for path in (sheet, index):
+            if path.exists() and path.name not in manifest_files(root):
+                print(f"taichi-dcd: error: {path} was not written by this tool and would be overwritten; "
+                      "choose another --out", file=sys.stderr)
+                return 2
         status, finished = 0, []
         for name in builtin_names():
             code, _ = _run_one(scene_config(name), args, root / name)
             if code == INTERRUPTED:
                 return 1
             status = max(status, code)
-            finished.append(name)
+            if (root / name / "metrics.json").is_file():
+                finished.append(name)
+        ours = [index.name] + ([] if args.no_frames else [sheet.name])
+        write_json_atomic(root / MANIFEST, {"written_by": "taichi-dcd", "files": ours})
         if not args.no_frames:
             from .output.render import write_contact_sheet
 
-            write_json_atomic(root / MANIFEST, {"written_by": "taichi-dcd", "files": [sheet.name]})
             write_contact_sheet([(n, root / n / "frames") for n in finished], sheet)
             print(f"contact sheet: {sheet}")
+        print(f"report: {write_index(root, finished)}")
         return status
     try:
         config = scene_config(args.scene)

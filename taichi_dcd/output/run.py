@@ -35,7 +35,7 @@ class OutputError(ValueError):
 
 def run_files(body_names: list[str]) -> list[str]:
     """The files a run writes besides its frames, relative to the output folder."""
-    return ["metrics.json", "metrics.csv", "animation.gif"] + [f"final/{n}.obj" for n in body_names]
+    return ["metrics.json", "metrics.csv", "plots.png", "animation.gif"] + [f"final/{n}.obj" for n in body_names]
 
 
 def _manifest_list(folder: Path, key: str) -> list[str]:
@@ -280,6 +280,11 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         mesh.export(out / "final" / f"{b.name}.obj")
     if writer and gif:
         writer.write_gif(out / "animation.gif", sim.frame_dt)
+    if rows:
+        from .report import PLOTS, plot_run
+
+        plot_run({name: np.array([r[k] for r in rows], dtype=np.float64) for k, name in enumerate(CSV_COLUMNS)},
+                 out / PLOTS, scene.name, sim.length_scale)
     final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
     metrics = {
         "scene": scene.name,
@@ -307,7 +312,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,
             "iterations": sim.iterations, "precision": runtime.precision(), "arch": runtime.settings()["arch"],
             "broad_phase": "grid" if scene.solver.use_grid else "all-pairs",
-            "stop_when_settled": sim.stop_when_settled,
+            "stop_when_settled": sim.stop_when_settled, "length_scale": sim.length_scale,
         },
     }
     write_json_atomic(out / "metrics.json", metrics)
