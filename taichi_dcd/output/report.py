@@ -5,7 +5,6 @@ frame, and its plots."""
 
 from __future__ import annotations
 
-import csv
 import html
 import json
 import os
@@ -17,14 +16,6 @@ from ..measure.penetration import PASS_FINAL_DEPTH, PASS_FINAL_OVERLAP, PASS_MAX
 
 PLOTS = "plots.png"
 INDEX = "index.html"
-
-
-def read_metrics_csv(path: Path) -> dict[str, np.ndarray]:
-    """metrics.csv as columns of floats, by header name."""
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = list(csv.reader(fh))
-    header, values = rows[0], np.array(rows[1:], dtype=np.float64).reshape(-1, len(rows[0]))
-    return {name: values[:, k] for k, name in enumerate(header)}
 
 
 def plot_run(columns: dict[str, np.ndarray], path: Path, title: str, length_scale: float = 1.0) -> None:

@@ -11,7 +11,7 @@ from PIL import Image
 
 import taichi_dcd
 from taichi_dcd.measure.penetration import verdict
-from taichi_dcd.output.report import plot_run, read_metrics_csv, write_index
+from taichi_dcd.output.report import plot_run, write_index
 from taichi_dcd.output.run import MANIFEST, run_scene
 from taichi_dcd.scene.config import scene_from_dict
 from taichi_dcd.scene.scene import Scene
@@ -51,13 +51,6 @@ def test_plots_of_a_run_without_overlap_or_ending_in_an_explosion_are_drawn(tmp_
     with Image.open(tmp_path / "plots.png") as image:
         assert image.size[0] >= 600 and image.size[1] >= 400
     assert not (tmp_path / "plots.png.tmp").exists()
-
-
-def test_metrics_csv_reads_back_as_columns(run_folder):
-    columns = read_metrics_csv(run_folder / "metrics.csv")
-    metrics = json.loads((run_folder / "metrics.json").read_text())
-    assert len(columns["time"]) == metrics["frames"] == 8
-    assert columns["penetration_depth"].max() == metrics["max_penetration_depth"]
 
 
 class Page(HTMLParser):
