@@ -239,6 +239,13 @@ def write_png(path, image: np.ndarray) -> None:
     Image.fromarray(image).save(path, format="PNG")
 
 
+def last_frame(folder) -> Path | None:
+    """The last frame_NNNNN.png in a run's frames folder; None without any."""
+    folder = Path(folder)
+    frames = sorted(folder.glob("frame_*.png")) if folder.is_dir() else []
+    return frames[-1] if frames else None
+
+
 def write_contact_sheet(entries, path, columns: int = 3, tile=(400, 300)) -> None:
     """A grid of each entry's last frame ((label, frames folder) pairs), labelled, as PNG;
     entries without frames are left out."""
@@ -246,9 +253,9 @@ def write_contact_sheet(entries, path, columns: int = 3, tile=(400, 300)) -> Non
 
     tiles = []
     for label, folder in entries:
-        frames = sorted(Path(folder).glob("frame_*.png"))
-        if frames:
-            image = Image.open(frames[-1]).convert("RGB").resize(tile, Image.LANCZOS)
+        frame = last_frame(folder)
+        if frame is not None:
+            image = Image.open(frame).convert("RGB").resize(tile, Image.LANCZOS)
             ImageDraw.Draw(image).text((8, 6), label, fill=(20, 20, 20))
             tiles.append(image)
     if not tiles:

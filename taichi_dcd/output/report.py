@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..measure.penetration import PASS_FINAL_DEPTH, PASS_FINAL_OVERLAP, PASS_MAX_DEPTH, verdict
+from .render import last_frame
 
 PLOTS = "plots.png"
 INDEX = "index.html"
@@ -78,8 +79,8 @@ def scene_picture(folder: Path) -> str | None:
     last frame, else None."""
     if (folder / "animation.gif").is_file():
         return "animation.gif"
-    frames = sorted((folder / "frames").glob("frame_*.png")) if (folder / "frames").is_dir() else []
-    return f"frames/{frames[-1].name}" if frames else None
+    frame = last_frame(folder / "frames")
+    return f"frames/{frame.name}" if frame is not None else None
 
 
 def write_index(root: Path, scenes: list[str]) -> Path:
