@@ -29,8 +29,8 @@ def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
     """Serial all-pairs broad phase: triangle pairs of different bodies (not both static),
     neither a hidden static face, whose padded boxes overlap, written to rows.tri; returns
     their number (more than the capacity on overflow)."""
-    n_b = ti.static(sim.model.n_bodies)
-    for t in range(ti.static(sim.model.n_tris)):
+    n_b = sim.model.body_count[0]
+    for t in range(sim.model.tri_count[0]):
         triangle_box(sim, t)
     for b in range(n_b):
         lo = vec3(ti.math.inf)

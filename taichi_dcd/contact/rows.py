@@ -89,7 +89,7 @@ class ContactConstraints(GrowableBuffer):
 @ti.func
 def forget_rows(sim: ti.template()):
     """Start a substep's contact rows: no body has a row yet."""
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         sim.body_last_row[b] = -1
 
 

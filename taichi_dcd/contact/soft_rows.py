@@ -44,13 +44,13 @@ def add_resting_vertex_rows(sim: ti.template(), rows: ti.template(), total: ti.i
     chatters (a ball draped on a spike: 8 mm/s). With a row, C ≥ 0 holds it in every sweep; a
     row in front of the face does nothing until it is crossed. Returns the rows needed."""
     n_rows = total
-    for i in range(ti.static(sim.model.n_vertices)):
+    for i in range(sim.model.vertex_count[0]):
         b_s = sim.model.vertex_body[i]
         if sim.model.body_kind[b_s] == SOFT:
             v = sim.state.vertex_x[i]
             skin = ti.static(SOFT_BOX_MARGIN) * sim.body_thickness[b_s]
             t_m = sim.vertex_tri[i]
-            for b in range(ti.static(sim.model.n_bodies)):
+            for b in range(sim.model.body_count[0]):
                 if sim.model.body_kind[b] != SOFT:
                     for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                         if sim.model.tri_hidden[t] == 0:
@@ -72,7 +72,7 @@ def add_sharp_edge_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, 
     draped over an edge is cut by it between its vertices, where no vertex row can hold it.
     Returns the rows needed."""
     n_rows = total
-    for t_s in range(ti.static(sim.model.n_tris)):
+    for t_s in range(sim.model.tri_count[0]):
         b_s = sim.model.tri_body[t_s]
         if sim.model.body_kind[b_s] == SOFT:
             skin = ti.static(SOFT_BOX_MARGIN) * sim.body_thickness[b_s]
@@ -82,7 +82,7 @@ def add_sharp_edge_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, 
             cross = (p1 - p0).cross(p2 - p0)
             if cross.norm() > 0.0:
                 n_s = cross.normalized()
-                for b in range(ti.static(sim.model.n_bodies)):
+                for b in range(sim.model.body_count[0]):
                     if sim.model.body_kind[b] != SOFT:
                         for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                             if sim.tri_sharp_edges[t] != 0 and sim.model.tri_hidden[t] == 0:

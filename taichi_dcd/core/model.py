@@ -1,7 +1,9 @@
 """Model (what does not change during a run) and State (what does), as Taichi fields.
 
-Both are allocated once by `ModelBuilder.finalize`; the solver reads the Model and
-advances the State in place. Units: metres, kilograms, seconds.
+Both are filled by `ModelBuilder.finalize` into a field set of `core.pool` (`model_fields`
+lays it out), which has at least as many rows as the scene needs: kernels loop over the
+scene's counts (`body_count` ...), read at run time, never over a field's rows. The solver
+reads the Model and advances the State in place. Units: metres, kilograms, seconds.
 
 Every body's vertices live in one global array `vertex_x` (world space), which is
 what the collision pipeline tests. A rigid or static body's vertices are derived
@@ -50,6 +52,7 @@ class Model:
     decay rate of its particles' velocities relative to its rigid motion; body_drag (B,) 1/s the
     decay rate of every point's velocity (velocity damping); body_spin_friction (B,) m, the
     largest torque about a contact normal per newton of normal force; body_rest_volume (B,) m³.
+    body_count, vertex_count, tri_count, edge_count (1,) i32: B, V, T, E for the kernels.
     vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
     indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
@@ -62,6 +65,10 @@ class Model:
     n_tris: int
     n_edges: int
     has_soft: bool
+    body_count: ti.Field
+    vertex_count: ti.Field
+    tri_count: ti.Field
+    edge_count: ti.Field
     body_kind: ti.Field
     body_inv_mass: ti.Field
     body_inertia: ti.Field
@@ -88,6 +95,7 @@ class Model:
     tri_body_np: np.ndarray = field(default=None, repr=False)
     tri_hidden_np: np.ndarray = field(default=None, repr=False)
     body_kind_np: np.ndarray = field(default=None, repr=False)  # a copy of body_kind, read every frame
+    field_set: object = field(default=None, repr=False)  # the pool's set holding these fields
 
     def body_index(self, name: str) -> int:
         for k, b in enumerate(self.bodies):
@@ -116,6 +124,41 @@ class State:
     time: float = 0.0
     frames_done: int = 0
     substeps_done: int = 0
+
+
+MODEL_FIELD_NAMES = ("body_count", "vertex_count", "tri_count", "edge_count", "body_kind", "body_inv_mass",
+                     "body_inertia", "body_inv_inertia", "body_force", "body_friction", "body_restitution",
+                     "body_vertex_range", "body_tri_range", "body_compliance", "body_damping", "body_drag",
+                     "body_spin_friction", "body_rest_volume", "vertex_body", "vertex_local", "vertex_inv_mass",
+                     "tri_indices", "tri_body", "tri_hidden", "edge_indices", "edge_rest")
+STATE_FIELD_NAMES = ("body_x", "body_q", "body_v", "body_w", "body_x_prev", "body_q_prev", "vertex_x",
+                     "vertex_x_prev", "vertex_v")
+
+
+def model_fields(rows: dict[str, int], has_soft: bool) -> dict:
+    """The fields of a Model and State (MODEL_FIELD_NAMES, STATE_FIELD_NAMES → field) with
+    rows["bodies"], ["vertices"], ["tris"], ["edges"] rows, in one SNode tree. Without soft
+    bodies the edge fields are None and the particles' own fields have one row."""
+    b, v, t, e = rows["bodies"], rows["vertices"], rows["tris"], rows["edges"]
+    i32 = ti.i32
+    particles = v if has_soft else 1
+    with runtime.field_block():
+        return dict(
+            body_count=scalar_field(1, i32), vertex_count=scalar_field(1, i32),
+            tri_count=scalar_field(1, i32), edge_count=scalar_field(1, i32),
+            body_kind=scalar_field(b, i32), body_inv_mass=scalar_field(b), body_inertia=mat_field(b),
+            body_inv_inertia=mat_field(b), body_force=vec_field(b), body_friction=scalar_field(b),
+            body_restitution=scalar_field(b), body_vertex_range=vec_field(b, 2, i32),
+            body_tri_range=vec_field(b, 2, i32), body_compliance=scalar_field(b), body_damping=scalar_field(b),
+            body_drag=scalar_field(b), body_spin_friction=scalar_field(b), body_rest_volume=scalar_field(b),
+            vertex_body=scalar_field(v, i32), vertex_local=vec_field(v), vertex_inv_mass=scalar_field(v),
+            tri_indices=vec_field(t, 3, i32), tri_body=scalar_field(t, i32), tri_hidden=scalar_field(t, i32),
+            edge_indices=vec_field(e, 2, i32) if has_soft else None,
+            edge_rest=scalar_field(e) if has_soft else None,
+            body_x=vec_field(b), body_q=vec_field(b, 4), body_v=vec_field(b), body_w=vec_field(b),
+            body_x_prev=vec_field(b), body_q_prev=vec_field(b, 4), vertex_x=vec_field(v),
+            vertex_x_prev=vec_field(particles), vertex_v=vec_field(particles),
+        )
 
 
 def _allocate(make, n: int) -> ti.Field:

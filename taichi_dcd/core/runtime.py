@@ -15,7 +15,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang._ndarray import Ndarray
 
-from . import kernel_cache
+from . import kernel_cache, pool
 
 ARCHS = ("cpu", "cuda", "vulkan")
 PRECISIONS = ("f32", "f64")
@@ -100,6 +100,7 @@ def reset() -> None:
         # can die now dies under its own program; the rest is kept alive for good.
         gc.collect()
         _stale_ndarrays.extend(o for o in gc.get_objects() if isinstance(o, Ndarray))
+        pool.clear()
         ti.reset()
         _settings = None
 

@@ -1,5 +1,5 @@
 """ModelBuilder: numpy meshes in, a Model and its initial State out. The only place
-that allocates the simulation's fields.
+that fills the simulation's fields (a field set from core.pool).
 
 Each body is a closed, consistently outward-oriented triangle mesh given in world
 space. A rigid body's frame is its centre of mass with the world's axes at build
@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from ..core import runtime
+from ..core import pool, runtime
 from ..contact.hidden_faces import hidden_static_faces
-from ..core.model import KIND_NAMES, RIGID, SOFT, STATIC, BodyInfo, Model, State, mat_field, scalar_field, vec_field
+from ..core.model import (KIND_NAMES, MODEL_FIELD_NAMES, RIGID, SOFT, STATE_FIELD_NAMES, STATIC, BodyInfo, Model,
+                          State, model_fields)
 from ..solver.tunnelling import mesh_thickness
 from .mesh_check import checked_mesh
 
@@ -82,9 +83,8 @@ class ModelBuilder:
         return len(self.specs) - 1
 
     def finalize(self) -> tuple[Model, State]:
-        """Allocate the Model and its initial State (Taichi must be initialised)."""
-        import taichi as ti
-
+        """The Model and its initial State, in a field set of the pool (core.pool) held until
+        both are collected (Taichi is initialised if it is not)."""
         runtime.ensure_init()
         if not self.specs:
             raise ValueError("a model needs at least one body")
@@ -142,64 +142,64 @@ class ModelBuilder:
         tri_hidden = np.concatenate(hidden_static_faces(
             [(w, b.faces) for w, b in zip(vertex_world, bodies)], [k == STATIC for k in kind])).astype(np.int32)
         n_e = int(sum(len(e) for e in edges))
-        i32 = ti.i32
         real = runtime.real_dtype()
 
-        # One SNode tree for the whole Model and State (runtime.field_block).
-        with runtime.field_block():
-            m = Model(
-                bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
-                body_kind=_from(scalar_field(n_b, i32), kind),
-                body_inv_mass=_from(scalar_field(n_b), inv_mass.astype(real)),
-                body_inertia=_from(mat_field(n_b), inertia.astype(real)),
-                body_inv_inertia=_from(mat_field(n_b), inv_inertia.astype(real)),
-                body_force=_from(vec_field(n_b), np.array([s.force for s in self.specs], real)),
-                body_friction=_from(scalar_field(n_b), np.array([s.friction for s in self.specs], real)),
-                body_restitution=_from(scalar_field(n_b), np.array([s.restitution for s in self.specs], real)),
-                body_vertex_range=_from(vec_field(n_b, 2, i32), vertex_range),
-                body_tri_range=_from(vec_field(n_b, 2, i32), tri_range),
-                body_compliance=_from(scalar_field(n_b), np.array([s.compliance for s in self.specs], real)),
-                body_damping=_from(scalar_field(n_b), np.array([s.damping for s in self.specs], real)),
-                body_drag=_from(scalar_field(n_b), np.array([s.drag for s in self.specs], real)),
-                body_spin_friction=_from(scalar_field(n_b), np.array([s.spin_friction for s in self.specs], real)),
-                body_rest_volume=_from(scalar_field(n_b), rest_volume.astype(real)),
-                vertex_body=_from(scalar_field(n_v, i32), np.concatenate(vertex_body)),
-                vertex_local=_from(vec_field(n_v), np.concatenate(vertex_local).astype(real)),
-                vertex_inv_mass=_from(scalar_field(n_v), np.concatenate(vertex_inv_mass).astype(real)),
-                tri_indices=_from(vec_field(n_t, 3, i32), np.concatenate(tris).astype(np.int32)),
-                tri_body=_from(scalar_field(n_t, i32), np.concatenate(tri_body)),
-                tri_hidden=_from(scalar_field(n_t, i32), tri_hidden),
-                tri_indices_np=np.concatenate(tris).astype(np.int32),
-                tri_body_np=np.concatenate(tri_body),
-                tri_hidden_np=tri_hidden.astype(bool),
-                body_kind_np=kind.copy(),
-            )
-            if has_soft:
-                m.edge_indices = _from(vec_field(n_e, 2, i32), np.concatenate(edges).astype(np.int32))
-                m.edge_rest = _from(scalar_field(n_e), np.concatenate(edge_rest).astype(real))
+        velocity = np.array([s.velocity for s in self.specs], real)
+        vertex_v = np.concatenate([np.tile(velocity[k], (b.vertex_count, 1)) for k, b in enumerate(bodies)])
+        quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], real), (n_b, 1))
+        x_world = np.concatenate(vertex_world).astype(real)
+        data = dict(
+            body_count=np.array([n_b], np.int32), vertex_count=np.array([n_v], np.int32),
+            tri_count=np.array([n_t], np.int32), edge_count=np.array([n_e], np.int32),
+            body_kind=kind,
+            body_inv_mass=inv_mass.astype(real),
+            body_inertia=inertia.astype(real),
+            body_inv_inertia=inv_inertia.astype(real),
+            body_force=np.array([s.force for s in self.specs], real),
+            body_friction=np.array([s.friction for s in self.specs], real),
+            body_restitution=np.array([s.restitution for s in self.specs], real),
+            body_vertex_range=vertex_range,
+            body_tri_range=tri_range,
+            body_compliance=np.array([s.compliance for s in self.specs], real),
+            body_damping=np.array([s.damping for s in self.specs], real),
+            body_drag=np.array([s.drag for s in self.specs], real),
+            body_spin_friction=np.array([s.spin_friction for s in self.specs], real),
+            body_rest_volume=rest_volume.astype(real),
+            vertex_body=np.concatenate(vertex_body),
+            vertex_local=np.concatenate(vertex_local).astype(real),
+            vertex_inv_mass=np.concatenate(vertex_inv_mass).astype(real),
+            tri_indices=np.concatenate(tris).astype(np.int32),
+            tri_body=np.concatenate(tri_body),
+            tri_hidden=tri_hidden,
+            body_x=com.astype(real),
+            body_q=quat,
+            body_v=np.where((kind == STATIC)[:, None], 0.0, velocity).astype(real),
+            body_w=np.zeros((n_b, 3), real),
+            body_x_prev=com.astype(real),
+            body_q_prev=quat,
+            vertex_x=x_world,
+        )
+        if has_soft:
+            data.update(edge_indices=np.concatenate(edges).astype(np.int32),
+                        edge_rest=np.concatenate(edge_rest).astype(real),
+                        vertex_x_prev=x_world, vertex_v=vertex_v.astype(real))
+        else:  # one zero row each: only soft bodies have particles of their own
+            data.update(vertex_x_prev=x_world[:0], vertex_v=x_world[:0])
 
-            velocity = np.array([s.velocity for s in self.specs], real)
-            vertex_v = np.concatenate([np.tile(velocity[k], (b.vertex_count, 1)) for k, b in enumerate(bodies)])
-            quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], real), (n_b, 1))
-            x_world = np.concatenate(vertex_world).astype(real)
-            s = State(
-                body_x=_from(vec_field(n_b), com.astype(real)),
-                body_q=_from(vec_field(n_b, 4), quat),
-                body_v=_from(vec_field(n_b), np.where((kind == STATIC)[:, None], 0.0, velocity).astype(real)),
-                body_w=_from(vec_field(n_b), np.zeros((n_b, 3), real)),
-                body_x_prev=_from(vec_field(n_b), com.astype(real)),
-                body_q_prev=_from(vec_field(n_b, 4), quat),
-                vertex_x=_from(vec_field(n_v), x_world),
-                vertex_x_prev=_from(vec_field(n_v if has_soft else 0), x_world if has_soft else x_world[:0]),
-                vertex_v=_from(vec_field(n_v if has_soft else 0), vertex_v.astype(real) if has_soft else x_world[:0]),
-            )
+        counts = {"bodies": n_b, "vertices": n_v, "tris": n_t, "edges": n_e}
+        field_set = pool.acquire(("model", has_soft), counts, lambda rows: model_fields(rows, has_soft))
+        try:
+            for name, fld in field_set.fields.items():
+                if fld is not None:
+                    fld.from_numpy(pool.padded(data[name], fld.shape[0]))
+            f = field_set.fields
+            m = Model(bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
+                      **{name: f[name] for name in MODEL_FIELD_NAMES},
+                      tri_indices_np=data["tri_indices"], tri_body_np=data["tri_body"],
+                      tri_hidden_np=tri_hidden.astype(bool), body_kind_np=kind.copy(), field_set=field_set)
+            s = State(**{name: f[name] for name in STATE_FIELD_NAMES})
+        except BaseException:
+            pool.give_back(field_set)
+            raise
+        pool.hold(field_set, m, s)
         return m, s
-
-
-def _from(fld, data: np.ndarray):
-    """Fill a field (max(len(data), 1) rows) from `data`, an empty array as one zero row."""
-    data = np.asarray(data)
-    if len(data) == 0:
-        data = np.zeros((1,) + data.shape[1:], dtype=data.dtype)
-    runtime.fill(fld, data)
-    return fld

@@ -36,7 +36,7 @@ def compute_levels(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32):
     """Each body's level in the contact graph: 0 for static bodies, 1 + the lowest level
     of the bodies it touches otherwise, n_bodies for bodies that rest on nothing static
     (shortest paths by repeated relaxation, serial)."""
-    n_b = ti.static(sim.model.n_bodies)
+    n_b = sim.model.body_count[0]
     for b in range(n_b):
         sim.body_level[b] = ti.select(sim.model.body_kind[b] == STATIC, 0, n_b)
     changed = True

@@ -1,6 +1,7 @@
-"""The solver's own fields, allocated once per scene: the bundle `sim` that every solver and
-contact-rule `ti.func` takes (with the Model and State it steps), so that no function threads a
-dozen fields through its arguments."""
+"""The solver's own fields and the bundle `sim` that every solver and contact-rule `ti.func`
+takes (with the fields of the Model and State it steps), so that no function threads a dozen
+fields through its arguments. Both are made once per field set of `core.pool` and reused by
+every scene that gets the set."""
 
 import numpy as np
 import taichi as ti
@@ -8,95 +9,162 @@ import taichi as ti
 from ..contact.exits import convex_neighbours, sharp_edge_bits
 from ..contact.rules import ContactRules
 from ..contact.soft_rows import SOFT_BOX_MARGIN
-from ..core import runtime
-from ..core.model import SOFT, Model, State, mat_field, scalar_field, vec_field
+from ..core import pool, runtime
+from ..core.model import (MODEL_FIELD_NAMES, SOFT, STATE_FIELD_NAMES, Model, State, mat_field, scalar_field,
+                          vec_field)
+
+
+# The solver's fields: name → (count the rows follow, kind), kind "scalar", "int", "vec<k>",
+# "ivec<k>" or "mat". "carry" rows hold the rows carried from one substep to the next; "one"
+# fields have a single row.
+_LAYOUT = {
+    "tri_lo": ("tris", "vec3"), "tri_hi": ("tris", "vec3"),
+    "body_lo": ("bodies", "vec3"), "body_hi": ("bodies", "vec3"),
+    "body_level": ("bodies", "int"),
+    # The last contact row whose moved triangle belongs to each body (-1: none); each
+    # row links to the one before it (ContactConstraints.tri), for is_duplicate.
+    "body_last_row": ("bodies", "int"),
+    "body_mass": ("bodies", "scalar"),
+    # Each rigid body's rotation vector over the current substep (rad): predicted plus
+    # every angular correction, added up so that the angular impulses add up exactly.
+    "body_theta": ("bodies", "vec3"),
+    # solve_blocks: each rigid body's move and turn (rad) in the current block
+    # solve, and its world inverse inertia at the substep's start (set by project).
+    "block_dx": ("bodies", "vec3"), "block_dtheta": ("bodies", "vec3"), "block_inv_inertia": ("bodies", "mat"),
+    # Each island's rows in b_rows, indexed by its root: [block_first, block_first + block_len).
+    "block_first": ("bodies", "int"), "block_len": ("bodies", "int"),
+    # Islands of rigid bodies joined by rows between them (union-find: each body's
+    # parent, the root its own), and 1 at the root of an island of several bodies.
+    "block_island": ("bodies", "int"), "block_coupled": ("bodies", "int"),
+    "body_thickness": ("bodies", "scalar"),
+    "body_reach": ("bodies", "scalar"),  # farthest vertex from a rigid body's centre (m)
+    # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
+    # speed about it (1), vertex box low (3) and high (3) corners.
+    "body_summary": ("bodies", "vec10"),
+    "body_box_margin": ("bodies", "scalar"),
+    # One triangle holding each vertex: the moved triangle of a soft vertex's resting row.
+    "vertex_tri": ("vertices", "int"),
+    # Bit k of tri_sharp_edges[t]: edge k (vertex k to k+1) of a rigid or static face is
+    # a convex edge sharper than SHARP_EDGE_DEGREES that this face owns (resting edge rows).
+    "tri_sharp_edges": ("tris", "int"),
+    # The triangles across each face's convex edges, -1 elsewhere (nearest_exit).
+    "tri_convex_nbr": ("tris", "ivec3"),
+    # The rows that pushed in the last substep (carry_rows), offered again in the next one,
+    # and their copy at the start of a frame (save_state).
+    "carry_tri": ("carry", "ivec2"), "carry_bary_moved": ("carry", "vec3"),
+    "carry_bary_other": ("carry", "vec3"), "carry_normal": ("carry", "vec3"), "carry_count": ("one", "int"),
+    "saved_carry_tri": ("carry", "ivec2"), "saved_carry_bary_moved": ("carry", "vec3"),
+    "saved_carry_bary_other": ("carry", "vec3"), "saved_carry_normal": ("carry", "vec3"),
+    "saved_carry_count": ("one", "int"),
+    # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
+    "saved_body_x": ("bodies", "vec3"), "saved_body_q": ("bodies", "vec4"), "saved_body_v": ("bodies", "vec3"),
+    "saved_body_w": ("bodies", "vec3"),
+}
+_SOFT_LAYOUT = {
+    "edge_lambda": ("edges", "scalar"),
+    "vertex_grad": ("vertices", "vec3"),
+    "saved_vertex_x": ("vertices", "vec3"), "saved_vertex_v": ("vertices", "vec3"),
+}
+
+
+def _allocate(rows: dict[str, int], has_soft: bool) -> dict:
+    """The solver's fields for a field set with these rows, in one SNode tree."""
+    out = {}
+    with runtime.field_block():
+        for name, (count, kind) in (_LAYOUT | (_SOFT_LAYOUT if has_soft else {})).items():
+            n = rows[count]
+            if kind == "scalar":
+                out[name] = scalar_field(n)
+            elif kind == "int":
+                out[name] = scalar_field(n, ti.i32)
+            elif kind == "mat":
+                out[name] = mat_field(n)
+            elif kind.startswith("ivec"):
+                out[name] = vec_field(n, int(kind[4:]), ti.i32)
+            else:
+                out[name] = vec_field(n, int(kind[3:]))
+    return out
+
+
+class FieldView:
+    """Fields by attribute, as the solver's `ti.func`s read them (sim.model.tri_indices ...)."""
+
+    def __init__(self, fields: dict, **facts):
+        self.__dict__.update(fields)
+        self.__dict__.update(facts)
 
 
 @ti.data_oriented
 class SolverFields:
-    """Model, State and the per-scene fields of the solver (sizes fixed by the Model).
-
-    Body fields have n_bodies rows, triangle fields n_tris, vertex fields n_vertices; lengths
-    in metres. `rules` says which contact rules are compiled in (all by default);
-    `has_spin_friction` compiles the spin-friction pass in only where some body has it.
+    """The bundle `sim` every solver and contact-rule `ti.func` takes: `model` and `state` (the
+    Model's and State's fields), the solver's own fields, `rules` (which contact rules are
+    compiled in) and `has_spin_friction` (whether the spin-friction pass is). Made by
+    `solver_fields`, once per field set and variant, so that kernels compiled for it serve
+    every scene that uses the set. Body fields have at least n_bodies rows, triangle fields
+    n_tris, vertex fields n_vertices; lengths in metres.
     """
 
-    def __init__(self, model: Model, state: State, rules: ContactRules | None = None):
-        m = model
+    def __init__(self, model: FieldView, state: FieldView, fields: dict, rules: ContactRules,
+                 has_spin_friction: bool, carry_capacity: int):
         self.model = model
         self.state = state
-        self.rules = rules or ContactRules()
-        kind = m.body_kind_np
-        self.has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
-        rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
-        sharp_bits = sharp_edge_bits(m, rest_x) if m.has_soft else None
-        nbr = convex_neighbours(m, rest_x)
-        with runtime.field_block():  # one SNode tree for the solver's fields
-            self.tri_lo = vec_field(m.n_tris)
-            self.tri_hi = vec_field(m.n_tris)
-            self.body_lo = vec_field(m.n_bodies)
-            self.body_hi = vec_field(m.n_bodies)
-            self.edge_lambda = scalar_field(m.n_edges) if m.has_soft else None
-            self.body_level = scalar_field(m.n_bodies, ti.i32)
-            # The last contact row whose moved triangle belongs to each body (-1: none); each
-            # row links to the one before it (ContactConstraints.tri), for is_duplicate.
-            self.body_last_row = scalar_field(m.n_bodies, ti.i32)
-            self.body_mass = scalar_field(m.n_bodies)
-            # Each rigid body's rotation vector over the current substep (rad): predicted plus
-            # every angular correction, added up so that the angular impulses add up exactly.
-            self.body_theta = vec_field(m.n_bodies)
-            # solve_blocks: each rigid body's move and turn (rad) in the current block
-            # solve, and its world inverse inertia at the substep's start (set by project).
-            self.block_dx = vec_field(m.n_bodies)
-            self.block_dtheta = vec_field(m.n_bodies)
-            self.block_inv_inertia = mat_field(m.n_bodies)
-            # Each island's rows in b_rows, indexed by its root: [block_first, block_first + block_len).
-            self.block_first = scalar_field(m.n_bodies, ti.i32)
-            self.block_len = scalar_field(m.n_bodies, ti.i32)
-            # Islands of rigid bodies joined by rows between them (union-find: each body's
-            # parent, the root its own), and 1 at the root of an island of several bodies.
-            self.block_island = scalar_field(m.n_bodies, ti.i32)
-            self.block_coupled = scalar_field(m.n_bodies, ti.i32)
-            self.body_thickness = scalar_field(m.n_bodies)
-            self.body_reach = scalar_field(m.n_bodies)  # farthest vertex from a rigid body's centre (m)
-            # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),
-            # speed about it (1), vertex box low (3) and high (3) corners.
-            self.body_summary = vec_field(m.n_bodies, 10)
-            real = runtime.real_dtype()
-            runtime.fill(self.body_mass, np.array([min(b.mass, 1e30) for b in m.bodies], real))
-            thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
-            runtime.fill(self.body_thickness, thickness.astype(real))
-            runtime.fill(self.body_reach, np.array([min(b.reach, 1e30) for b in m.bodies], real))
-            box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * thickness, 0.0)
-            self.body_box_margin = scalar_field(m.n_bodies)
-            runtime.fill(self.body_box_margin, box_margin.astype(real))
-            self.vertex_grad = vec_field(m.n_vertices) if m.has_soft else None
-            # One triangle holding each vertex: the moved triangle of a soft vertex's resting row.
-            self.vertex_tri = scalar_field(max(m.n_vertices, 1), ti.i32)
-            vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
-            vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
-            runtime.fill(self.vertex_tri, vertex_tri)
-            # Bit k of tri_sharp_edges[t]: edge k (vertex k to k+1) of a rigid or static face is
-            # a convex edge sharper than SHARP_EDGE_DEGREES that this face owns (resting edge rows).
-            self.tri_sharp_edges = scalar_field(max(m.n_tris, 1), ti.i32)
-            if m.has_soft:
-                runtime.fill(self.tri_sharp_edges, sharp_bits)
-            # The triangles across each face's convex edges, -1 elsewhere (nearest_exit).
-            self.tri_convex_nbr = vec_field(m.n_tris, 3, ti.i32)
-            runtime.fill(self.tri_convex_nbr, nbr)
-            # The rows that pushed in the last substep (carry_rows), offered again in the next one.
-            self.carry_capacity = max(1024, m.n_tris)
-            self.carry_tri = vec_field(self.carry_capacity, 2, ti.i32)
-            self.carry_bary_moved = vec_field(self.carry_capacity)
-            self.carry_bary_other = vec_field(self.carry_capacity)
-            self.carry_normal = vec_field(self.carry_capacity)
-            self.carry_count = scalar_field(1, ti.i32)
-            # ... and their copy at the start of a frame (save_state), with the state's.
-            self.saved_carry = [vec_field(self.carry_capacity, 2, ti.i32), vec_field(self.carry_capacity),
-                                vec_field(self.carry_capacity), vec_field(self.carry_capacity),
-                                scalar_field(1, ti.i32)]
-            # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
-            self.saved_body = [vec_field(m.n_bodies), vec_field(m.n_bodies, 4), vec_field(m.n_bodies),
-                               vec_field(m.n_bodies)]
-            self.saved_vertex = [vec_field(m.n_vertices), vec_field(m.n_vertices)] if m.has_soft else None
-        self.box_margin_np = box_margin  # (B,) the grid pads soft bodies' boxes by it too
+        self.rules = rules
+        self.has_spin_friction = has_spin_friction
+        self.carry_capacity = carry_capacity
+        self.__dict__.update(fields)
+        self.saved_carry = [fields[f"saved_carry_{k}"] for k in ("tri", "bary_moved", "bary_other", "normal", "count")]
+        self.saved_body = [fields[f"saved_body_{k}"] for k in "xqvw"]
+        self.saved_vertex = [fields["saved_vertex_x"], fields["saved_vertex_v"]] if model.has_soft else None
+        self.box_margin_np = np.zeros(0)
+
+
+def solver_fields(model: Model, state: State, rules: ContactRules | None = None) -> SolverFields:
+    """The solver's bundle for this Model and State, its fields filled for them: one made
+    before for the same field set (core.pool) and variant, or a new one. `rules` says which
+    contact rules are compiled in (all by default); the spin-friction pass is compiled in
+    only where some body has spin friction."""
+    m = model
+    rules = rules or ContactRules()
+    field_set = m.field_set
+    parts = field_set.parts
+    if "solver" not in parts:
+        rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1)
+        parts["solver"] = _allocate(rows, m.has_soft)
+        parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft)
+        parts["state"] = FieldView({k: field_set.fields[k] for k in STATE_FIELD_NAMES})
+    has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
+    key = ("sim", rules, has_spin_friction)
+    if key not in parts:
+        parts[key] = SolverFields(parts["model"], parts["state"], parts["solver"], rules, has_spin_friction,
+                                  carry_capacity=parts["solver"]["carry_tri"].shape[0])
+    sim = parts[key]
+    _fill(sim, parts["solver"], m, state)
+    return sim
+
+
+def _fill(sim: SolverFields, fields: dict, m: Model, state: State) -> None:
+    """Every solver field of this scene: its data, or zeros."""
+    kind = m.body_kind_np
+    real = runtime.real_dtype()
+    rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
+    thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
+    box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * thickness, 0.0)
+    vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
+    vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
+    data = {
+        "body_mass": np.array([min(b.mass, 1e30) for b in m.bodies], real),
+        "body_thickness": thickness.astype(real),
+        "body_reach": np.array([min(b.reach, 1e30) for b in m.bodies], real),
+        "body_box_margin": box_margin.astype(real),
+        "vertex_tri": vertex_tri,
+        "tri_convex_nbr": convex_neighbours(m, rest_x),
+    }
+    if m.has_soft:
+        data["tri_sharp_edges"] = sharp_edge_bits(m, rest_x)
+    for name, fld in fields.items():
+        values = data.get(name)
+        if values is None:
+            fld.fill(0)
+        else:
+            fld.from_numpy(pool.padded(values, fld.shape[0]))
+    sim.box_margin_np = box_margin  # (B,) the grid pads soft bodies' boxes by it too

@@ -46,10 +46,10 @@ def place_vertex(sim: ti.template(), i: ti.i32):
 @ti.func
 def predict(sim: ti.template(), h: float, gravity: vec3, kick: float):
     """Predict every rigid body and soft particle (Müller 2020, Alg. 2, lines 3-8)."""
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         predict_body(sim, b, h, gravity, kick)
     if ti.static(sim.model.has_soft):
-        for i in range(ti.static(sim.model.n_vertices)):
+        for i in range(sim.model.vertex_count[0]):
             predict_particle(sim, i, h, gravity, kick)
 
 
@@ -125,12 +125,12 @@ def apply_drag(sim: ti.template(), b: ti.i32, h: float):
 def update_velocities(sim: ti.template(), h: float):
     """Velocities from the substep's motion (Müller 2020, Alg. 2, lines 12-16), then the soft
     bodies' damping."""
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         update_body_velocity(sim, b, h)
     if ti.static(sim.model.has_soft):
-        for i in range(ti.static(sim.model.n_vertices)):
+        for i in range(sim.model.vertex_count[0]):
             update_particle_velocity(sim, i, h)
-        for b in range(ti.static(sim.model.n_bodies)):
+        for b in range(sim.model.body_count[0]):
             damp_soft_body(sim, b, h)
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         apply_drag(sim, b, h)

@@ -97,7 +97,7 @@ def solve_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it
     not. Between moving bodies the same holds: projected one at a time, a stack of five
     boxes crept sideways at 3-6e-5 m/s for good (friction between the boxes unconverged
     at 8 sweeps); in one island it rests."""
-    n_b = ti.static(sim.model.n_bodies)
+    n_b = sim.model.body_count[0]
     for b in range(n_b):
         sim.block_dx[b] = vec3(0.0)
         sim.block_dtheta[b] = vec3(0.0)

@@ -30,30 +30,16 @@ import time
 import numpy as np
 import taichi as ti
 
-from ..collision.contacts import PairResults
 from ..collision.pipeline import CollisionPipeline
-from ..contact.rows import ContactConstraints, ContactRows
+from ..contact.rows import ContactConstraints
 from ..contact.rules import ContactRules
 from ..contact.soft_rows import RESTING_ROWS_PER_SOFT_VERTEX
 from ..contact.vertex_rows import VERTEX_ROWS_PER_PAIR, VERTEX_ROWS_PER_PAIR_SOFT
 from ..core import runtime
 from ..core.model import STATIC, Model, State
-from .fields import SolverFields
-from .integrate import place_vertex, predict
-from .substep import (
-    restore_state,
-    rows_at_state,
-    save_state,
-    state_is_sane,
-    substep_all_pairs,
-    substep_from_pairs,
-)
-from .summary import substeps_suffice, summarize_bodies
+from .fields import solver_fields
+from .kernels import OVERFLOW, begin_substep, end_substep, frames_all_pairs, rows_at_state_kernel, summarize_kernel
 
-vec3 = ti.math.vec3
-mat3 = ti.math.mat3
-ivec2 = ti.types.vector(2, ti.i32)
-ivec3 = ti.types.vector(3, ti.i32)
 
 # Above this many triangle pairs between body boxes (summed over body pairs, upper
 # bound) a substep uses the uniform grid instead of the in-kernel all-pairs test.
@@ -78,17 +64,12 @@ LEFT_SCENE_SIZES = 1e6
 # ... but no speed below this (m/s, times √length_scale) counts as an explosion, so that a lone
 # small body may fall for as long as a scene runs (a fall from 5 km ends at ~310 m/s).
 EXPLOSION_SPEED_FLOOR = 1e4
-# _frames_all_pairs's status when the next frame needs more substeps than it was given (not begun),
-# and when a frame's contacts overflowed the buffer (undone).
-NEEDS_CHOICE = 1
-OVERFLOW = 2
 
 
 class SimulationError(RuntimeError):
     """The simulation produced NaN, a body exploded or left the scene; the message names the body."""
 
 
-@ti.data_oriented
 class XPBDSolver:
     """Advances a State of a Model by frames of `substeps` XPBD substeps.
 
@@ -110,7 +91,7 @@ class XPBDSolver:
         self.model = model
         self.state = state
         self.gravity = np.asarray(gravity, dtype=np.float64).reshape(3)
-        x0 = state.vertex_x.to_numpy().astype(np.float64)
+        x0 = state.vertex_x.to_numpy()[: model.n_vertices].astype(np.float64)
         lo, hi = (x0.min(axis=0), x0.max(axis=0)) if len(x0) else (np.zeros(3), np.zeros(3))
         self.scene_centre = 0.5 * (lo + hi)
         self.scene_size = float(np.linalg.norm(hi - lo)) or 1.0
@@ -128,7 +109,7 @@ class XPBDSolver:
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
-        self.sim = SolverFields(model, state, rules)
+        self.sim = solver_fields(model, state, rules)
         if self.use_grid:
             tri_static = kind[m.tri_body_np] == STATIC
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
@@ -145,129 +126,6 @@ class XPBDSolver:
         # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
         self.phase_seconds: dict | None = None
 
-    # ---------------------------------------------------------------- kernels
-    @ti.kernel
-    def _summarize_bodies(self):
-        ti.loop_config(serialize=True)  # on the launching thread: a parallel task costs ~30 µs to start
-        for _ in range(1):
-            summarize_bodies(self.sim)
-
-    @ti.kernel
-    def _frames_all_pairs(self, frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
-                          first_kick: float, centre: vec3, bound: float, top_speed: float, depenetration: float,
-                          check: ti.i32, max_impact: float,
-                          thinnest: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                          c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                          c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                          c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                          c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                          c_vn0: ti.types.ndarray(ndim=1),
-                          c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                          b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                          b_gap: ti.types.ndarray(ndim=1),
-                          b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                          b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(4, ti.i32):
-        """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
-        substep). Each frame starts from a snapshot of the state. With `check`, each frame
-        first runs `substeps_suffice`; if they do not, the launch stops before that frame
-        (NEEDS_CHOICE). A frame whose candidates overflow the contact buffer is undone and the
-        launch stops (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
-        begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
-        bad body, the bad frame counted as done)."""
-        rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                     c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-        done = 0
-        most = 0
-        n = 0
-        status = 0
-        g_norm = gravity.norm()
-        capacity = c_tri.shape[0]
-        ti.loop_config(serialize=True)
-        for _ in range(1):
-            while done < frames and status == 0:
-                if check != 0 and substeps_suffice(self.sim, substeps, h * substeps, g_norm, max_impact,
-                                                   thinnest) == 0:
-                    status = NEEDS_CHOICE
-                    break
-                save_state(self.sim)
-                most = 0
-                for sub in range(substeps):
-                    kick = ti.select(done == 0 and sub == 0, first_kick, 1.0)
-                    wanted, n = substep_all_pairs(self.sim, rows, iterations, h, gravity, g_norm, kick, depenetration)
-                    most = ti.max(most, wanted)
-                if most > capacity:
-                    restore_state(self.sim)
-                    status = OVERFLOW
-                else:
-                    for i in range(ti.static(self.model.n_vertices)):
-                        place_vertex(self.sim, i)
-                    status = state_is_sane(self.sim, centre, bound, top_speed)
-                    done += 1
-        return ti.Vector([done, most, n, status])
-
-    @ti.kernel
-    def _begin_substep(self, h: float, gravity: vec3, kick: float,
-                       vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
-        """Predict every body and particle in parallel and place the vertices for the grid."""
-        predict(self.sim, h, gravity, kick)
-        for i in range(ti.static(self.model.n_vertices)):
-            place_vertex(self.sim, i)
-            vertex_nd[i] = self.state.vertex_x[i]
-
-    @ti.kernel
-    def _end_substep(self, iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
-                     top_speed: float, depenetration: float, n_pairs: ti.i32,
-                     p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
-                     p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
-                     p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                     c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                     c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                     c_vn0: ti.types.ndarray(ndim=1),
-                     c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                     b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                     b_gap: ti.types.ndarray(ndim=1),
-                     b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                     b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
-        """The grid's contacts into rows, projection and velocities of one substep (the same
-        sequence as the all-pairs path, solver.substep). Returns (contacts, state check)."""
-        rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                     c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-        pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
-        n = 0
-        status = 0
-        ti.loop_config(serialize=True)
-        for _ in range(1):
-            n = substep_from_pairs(self.sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
-            for i in range(ti.static(self.model.n_vertices)):
-                place_vertex(self.sim, i)
-            status = state_is_sane(self.sim, centre, bound, top_speed)
-        return ti.Vector([n, status])
-
-    @ti.kernel
-    def _rows_at_state(self, max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                       c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                       c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                       c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                       c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                       c_vn0: ti.types.ndarray(ndim=1),
-                       c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                       b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                       b_gap: ti.types.ndarray(ndim=1),
-                       b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                       b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
-        """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
-        rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                     c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-        needed = 0
-        n = 0
-        ti.loop_config(serialize=True)
-        for _ in range(1):
-            needed, n = rows_at_state(self.sim, rows, max_push)
-        return ti.Vector([needed, n])
-
     # ----------------------------------------------------------------- python
     def contact_rows(self, h: float) -> dict:
         """The contact rows the rules write for the current state, as a substep of length h (s)
@@ -277,7 +135,7 @@ class XPBDSolver:
         triangle's anchor in world space; normal (n, 3), the unit direction the moved point is
         pushed; depth (n,) m, normal·(target − point)."""
         while True:
-            needed, n = (int(v) for v in self._rows_at_state(self.depenetration_speed * h, *self.contacts.arrays()))
+            needed, n = (int(v) for v in rows_at_state_kernel(self.sim, self.depenetration_speed * h, *self.contacts.arrays()))
             if needed <= self.contacts.capacity:
                 break
             self.contacts.grow(needed)
@@ -298,7 +156,7 @@ class XPBDSolver:
     def body_summary_numpy(self) -> np.ndarray:
         """(B, 10) float64: per body velocity (3), motion about it (1: |ω| rigid, particle speed
         soft), vertex box low (3) and high (3), at the current state."""
-        self._summarize_bodies()
+        summarize_kernel(self.sim)
         return self.sim.body_summary.to_numpy()[: self.model.n_bodies].astype(np.float64)
 
     def step_frame(self, frame_dt: float, substeps: int, iterations: int,
@@ -343,8 +201,8 @@ class XPBDSolver:
             gravity = ti.Vector(list(self.gravity))
             while done < frames:
                 first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
-                ran, most, count, status = (int(v) for v in self._frames_all_pairs(
-                    frames - done, substeps, iterations, h, gravity, first_kick, centre, self.bound, top_speed,
+                ran, most, count, status = (int(v) for v in frames_all_pairs(
+                    self.sim, frames - done, substeps, iterations, h, gravity, first_kick, centre, self.bound, top_speed,
                     self.depenetration_speed, check, max_impact_motion or 0.0, self.thinnest,
                     *self.contacts.arrays()))
                 done += ran
@@ -393,7 +251,7 @@ class XPBDSolver:
         timing = self.phase_seconds
         for sub in range(substeps):
             start = time.perf_counter()
-            self._begin_substep(h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
+            begin_substep(self.sim, h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
             if timing is not None:
                 ti.sync()
                 timing["predict"] = timing.get("predict", 0.0) + time.perf_counter() - start
@@ -405,8 +263,8 @@ class XPBDSolver:
             if wanted > self.contacts.capacity:
                 self.contacts.grow(wanted)
                 self.contact_growths += 1
-            n, status = (int(v) for v in self._end_substep(
-                iterations, h, g_norm, ti.Vector(list(self.scene_centre)), self.bound, top_speed,
+            n, status = (int(v) for v in end_substep(
+                self.sim, iterations, h, g_norm, ti.Vector(list(self.scene_centre)), self.bound, top_speed,
                 self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                 *self.contacts.arrays()))
             if timing is not None:

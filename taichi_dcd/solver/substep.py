@@ -33,18 +33,18 @@ def project(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, iterati
     compute_levels(sim, rows, n_contacts)
     # The blocks' turns act through the inverse inertia at the substep's start
     # (apply_positional_impulse), the same for every sweep.
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         if sim.model.body_kind[b] == RIGID:
             rot = quat_matrix(sim.state.body_q_prev[b])
             sim.block_inv_inertia[b] = rot @ sim.model.body_inv_inertia[b] @ rot.transpose()
     if ti.static(sim.model.has_soft):
-        for e in range(ti.static(sim.model.n_edges)):
+        for e in range(sim.model.edge_count[0]):
             sim.edge_lambda[e] = 0.0
     for it in range(iterations):
         if ti.static(sim.model.has_soft):
-            for e in range(ti.static(sim.model.n_edges)):
+            for e in range(sim.model.edge_count[0]):
                 solve_edge(sim, e, h)
-            for b in range(ti.static(sim.model.n_bodies)):
+            for b in range(sim.model.body_count[0]):
                 solve_volume(sim, b)
         # Normals first, then friction on the slip they leave; the sweeps alternate
         # direction so that no contact is always last.
@@ -96,7 +96,7 @@ def substep_all_pairs(sim: ti.template(), rows: ti.template(), iterations: ti.i3
     solved)."""
     capacity = rows.tri.shape[0]
     predict(sim, h, gravity, kick)
-    for i in range(ti.static(sim.model.n_vertices)):
+    for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)
     n = candidate_pairs(sim, rows)
     wanted = n
@@ -111,7 +111,7 @@ def rows_at_state(sim: ti.template(), rows: ti.template(), max_push: float):
     """The contact rows of the current state, as a substep's first half writes them after its
     prediction (the all-pairs broad phase, the narrow phase, every rule), without solving them.
     Returns (rows needed, rows written)."""
-    for i in range(ti.static(sim.model.n_vertices)):
+    for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)
     n = candidate_pairs(sim, rows)
     wanted = n
@@ -145,13 +145,13 @@ def save_state(sim: ti.template()):
         sim.saved_carry[1][k] = sim.carry_bary_moved[k]
         sim.saved_carry[2][k] = sim.carry_bary_other[k]
         sim.saved_carry[3][k] = sim.carry_normal[k]
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         sim.saved_body[0][b] = sim.state.body_x[b]
         sim.saved_body[1][b] = sim.state.body_q[b]
         sim.saved_body[2][b] = sim.state.body_v[b]
         sim.saved_body[3][b] = sim.state.body_w[b]
     if ti.static(sim.model.has_soft):
-        for i in range(ti.static(sim.model.n_vertices)):
+        for i in range(sim.model.vertex_count[0]):
             sim.saved_vertex[0][i] = sim.state.vertex_x[i]
             sim.saved_vertex[1][i] = sim.state.vertex_v[i]
 
@@ -165,16 +165,16 @@ def restore_state(sim: ti.template()):
         sim.carry_bary_moved[k] = sim.saved_carry[1][k]
         sim.carry_bary_other[k] = sim.saved_carry[2][k]
         sim.carry_normal[k] = sim.saved_carry[3][k]
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         sim.state.body_x[b] = sim.saved_body[0][b]
         sim.state.body_q[b] = sim.saved_body[1][b]
         sim.state.body_v[b] = sim.saved_body[2][b]
         sim.state.body_w[b] = sim.saved_body[3][b]
     if ti.static(sim.model.has_soft):
-        for i in range(ti.static(sim.model.n_vertices)):
+        for i in range(sim.model.vertex_count[0]):
             sim.state.vertex_x[i] = sim.saved_vertex[0][i]
             sim.state.vertex_v[i] = sim.saved_vertex[1][i]
-    for i in range(ti.static(sim.model.n_vertices)):
+    for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)
 
 
@@ -183,12 +183,12 @@ def state_is_sane(sim: ti.template(), centre: vec3, bound: float, top_speed: flo
     """-1 - (index of the first body) whose state is NaN, faster than `top_speed` (m/s) or
     farther than `bound` (m) from `centre` along an axis, else 0."""
     bad = 0
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         ok = ti.abs(sim.state.body_x[b] - centre).max() <= bound and sim.state.body_v[b].norm() <= top_speed
         if bad == 0 and not ok:
             bad = -1 - b
     if ti.static(sim.model.has_soft):
-        for i in range(ti.static(sim.model.n_vertices)):
+        for i in range(sim.model.vertex_count[0]):
             ok = ti.abs(sim.state.vertex_x[i] - centre).max() <= bound and sim.state.vertex_v[i].norm() <= top_speed
             if bad == 0 and not ok:
                 bad = -1 - sim.model.vertex_body[i]

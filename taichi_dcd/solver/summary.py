@@ -13,7 +13,7 @@ def summarize_bodies(sim: ti.template()):
     """body_summary (serial): per body its linear velocity (m/s; a soft body's particle mean, 0 for a
     static one), the fastest motion about it (|ω| in rad/s for a rigid body, the largest
     particle speed about the mean in m/s for a soft one) and its vertices' box (m)."""
-    for b in range(ti.static(sim.model.n_bodies)):
+    for b in range(sim.model.body_count[0]):
         r = sim.model.body_vertex_range[b]
         lo = vec3(ti.math.inf)
         hi = vec3(-ti.math.inf)
@@ -59,8 +59,8 @@ def substeps_suffice(sim: ti.template(), substeps: ti.i32, frame_dt: float, g_no
     `max_impact` per substep. 0 otherwise (the caller then chooses in numpy). Serial."""
     summarize_bodies(sim)
     ok = 1
-    n_b = ti.static(sim.model.n_bodies)
-    if ti.static(n_b >= 2):
+    n_b = sim.model.body_count[0]
+    if n_b >= 2:
         first = 0.0
         second = 0.0
         for b in range(n_b):

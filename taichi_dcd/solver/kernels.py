@@ -1,0 +1,155 @@
+"""The solver's kernels, each a thin sequence of the `ti.func`s of solver/ and contact/ over
+the bundle `sim` (solver.fields): a whole frame's substeps in one launch on the all-pairs
+path, the two launches around the grid's collision query per substep on the other, the
+rows of the current state, and the per-body summary. `sim` is a template argument: a kernel
+is compiled once per bundle, and a bundle serves every scene of its field set (core.pool).
+"""
+
+import taichi as ti
+
+from ..collision.contacts import PairResults
+from ..contact.rows import ContactRows
+from .integrate import place_vertex, predict
+from .substep import (
+    restore_state,
+    rows_at_state,
+    save_state,
+    state_is_sane,
+    substep_all_pairs,
+    substep_from_pairs,
+)
+from .summary import substeps_suffice, summarize_bodies
+
+vec3 = ti.math.vec3
+mat3 = ti.math.mat3
+ivec2 = ti.types.vector(2, ti.i32)
+ivec3 = ti.types.vector(3, ti.i32)
+
+# frames_all_pairs's status when the next frame needs more substeps than it was given (not begun),
+# and when a frame's contacts overflowed the buffer (undone).
+NEEDS_CHOICE = 1
+OVERFLOW = 2
+
+
+@ti.kernel
+def summarize_kernel(sim: ti.template()):
+    ti.loop_config(serialize=True)  # on the launching thread: a parallel task costs ~30 µs to start
+    for _ in range(1):
+        summarize_bodies(sim)
+
+@ti.kernel
+def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
+                      first_kick: float, centre: vec3, bound: float, top_speed: float, depenetration: float,
+                      check: ti.i32, max_impact: float,
+                      thinnest: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                      c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                      c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                      c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                      c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                      c_vn0: ti.types.ndarray(ndim=1),
+                      c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                      b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                      b_gap: ti.types.ndarray(ndim=1),
+                      b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(4, ti.i32):
+    """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
+    substep). Each frame starts from a snapshot of the state. With `check`, each frame
+    first runs `substeps_suffice`; if they do not, the launch stops before that frame
+    (NEEDS_CHOICE). A frame whose candidates overflow the contact buffer is undone and the
+    launch stops (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
+    begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
+    bad body, the bad frame counted as done)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    done = 0
+    most = 0
+    n = 0
+    status = 0
+    g_norm = gravity.norm()
+    capacity = c_tri.shape[0]
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        while done < frames and status == 0:
+            if check != 0 and substeps_suffice(sim, substeps, h * substeps, g_norm, max_impact,
+                                               thinnest) == 0:
+                status = NEEDS_CHOICE
+                break
+            save_state(sim)
+            most = 0
+            for sub in range(substeps):
+                kick = ti.select(done == 0 and sub == 0, first_kick, 1.0)
+                wanted, n = substep_all_pairs(sim, rows, iterations, h, gravity, g_norm, kick, depenetration)
+                most = ti.max(most, wanted)
+            if most > capacity:
+                restore_state(sim)
+                status = OVERFLOW
+            else:
+                for i in range(sim.model.vertex_count[0]):
+                    place_vertex(sim, i)
+                status = state_is_sane(sim, centre, bound, top_speed)
+                done += 1
+    return ti.Vector([done, most, n, status])
+
+@ti.kernel
+def begin_substep(sim: ti.template(), h: float, gravity: vec3, kick: float,
+                   vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
+    """Predict every body and particle in parallel and place the vertices for the grid."""
+    predict(sim, h, gravity, kick)
+    for i in range(sim.model.vertex_count[0]):
+        place_vertex(sim, i)
+        vertex_nd[i] = sim.state.vertex_x[i]
+
+@ti.kernel
+def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
+                 top_speed: float, depenetration: float, n_pairs: ti.i32,
+                 p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
+                 p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
+                 p_point: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_vn0: ti.types.ndarray(ndim=1),
+                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_gap: ti.types.ndarray(ndim=1),
+                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+    """The grid's contacts into rows, projection and velocities of one substep (the same
+    sequence as the all-pairs path, solver.substep). Returns (contacts, state check)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
+    n = 0
+    status = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        n = substep_from_pairs(sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
+        for i in range(sim.model.vertex_count[0]):
+            place_vertex(sim, i)
+        status = state_is_sane(sim, centre, bound, top_speed)
+    return ti.Vector([n, status])
+
+@ti.kernel
+def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                   c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                   c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                   c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                   c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                   c_vn0: ti.types.ndarray(ndim=1),
+                   c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                   b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                   b_gap: ti.types.ndarray(ndim=1),
+                   b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                   b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+    """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    needed = 0
+    n = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        needed, n = rows_at_state(sim, rows, max_push)
+    return ti.Vector([needed, n])
+
