@@ -155,6 +155,8 @@ def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 
     tris = np.asarray(mesh.triangles)
     centre = tris.mean(axis=1)
     radius = np.linalg.norm(tris - centre[:, None, :], axis=2).max(axis=1)
+    near = _may_be_nearest(points, centre, radius)
+    tris, centre, radius = tris[near], centre[near], radius[near]
     best = np.full(len(points), np.inf)
     step = max(1, chunk // max(len(tris), 1))
     for start in range(0, len(points), step):
@@ -168,6 +170,21 @@ def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 
         np.minimum.at(out, rows, d)
         best[start:start + step] = out
     return best
+
+
+def _may_be_nearest(points: np.ndarray, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Indices of the triangles (centres (t, 3), bounding radii (t,)) that can be nearest to a
+    point in the box around `points`: every point is within U = min_t (farthest box corner
+    from c_t + r_t) of the surface, so a triangle whose sphere lies farther than U from the
+    box is no point's nearest nor one of its candidates in distance_to_surface, whose result
+    is therefore the same to the bit with or without the others. The overlap's points lie in
+    a small box, so this leaves the triangles around it."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    far = np.linalg.norm(np.maximum(np.abs(centre - lo), np.abs(centre - hi)), axis=1)
+    bound = float((far + radius).min())
+    gap = np.linalg.norm(np.maximum(np.maximum(lo - centre, centre - hi), 0.0), axis=1)
+    # A relative slack keeps rounding from dropping a triangle that is a candidate.
+    return np.flatnonzero(gap - radius <= bound * (1.0 + 1e-9) + 1e-300)
 
 
 def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFINE_POINTS) -> tuple[float, float]:
@@ -187,21 +204,27 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
     depth = depth_at(points)
     best = float(depth.max())
     tri = v[f]
+    # Each of the deepest face points is refined on its own local grid, twice; the grids of
+    # one level are measured in one batch (a point's distance does not depend on the batch).
+    refining = []  # (triangle (3, 3), centre (u, v), spacing)
     for k in np.argsort(depth)[::-1][:refine]:
-        if face[k] < 0:
-            continue
-        centre, h = _barycentric_uv(tri[face[k]], points[k]), step[k]
-        if centre is None:
-            continue
-        for _ in range(2):
+        if face[k] >= 0 and (centre := _barycentric_uv(tri[face[k]], points[k])) is not None:
+            refining.append((tri[face[k]], centre, step[k]))
+    for _ in range(2):
+        grids = []
+        for t, centre, h in refining:
             offsets = np.linspace(-h, h, 9)
             uv = (centre[None] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), -1).reshape(-1, 2))
             uv = uv[(uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv.sum(axis=1) <= 1)]
-            if len(uv) == 0:
-                break
-            d = depth_at(_on_faces(tri[face[k]][None], uv)[0])
-            best = max(best, float(d.max()))
-            centre, h = uv[int(np.argmax(d))], h / 8
+            if len(uv):
+                grids.append((t, uv, h))
+        if not grids:
+            break
+        d_all = depth_at(np.concatenate([_on_faces(t[None], uv)[0] for t, uv, _ in grids]))
+        best = max(best, float(d_all.max()))
+        ends = np.cumsum([len(uv) for _, uv, _ in grids])
+        refining = [(t, uv[int(np.argmax(d))], h / 8)
+                    for (t, uv, h), d in zip(grids, np.split(d_all, ends[:-1]))]
     return best, volume
 
 

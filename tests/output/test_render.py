@@ -83,3 +83,18 @@ def test_same_state_renders_to_identical_bytes(f64, tmp_path):
         blobs.append((tmp_path / f"{k}.png").read_bytes())
     assert blobs[0] == blobs[1]
     assert len(io.BytesIO(blobs[0]).getvalue()) > 1000
+
+
+def test_written_png_reads_back_as_the_same_pixels(tmp_path):
+    """write_png's files open in Pillow (the contact sheet, any viewer) as exactly the image
+    written, for a random image and a flat one, odd sizes included."""
+    from PIL import Image
+
+    rng = np.random.default_rng(3)
+    for image in (rng.integers(0, 256, size=(37, 53, 3), dtype=np.uint8),
+                  np.full((600, 800, 3), BACKGROUND, np.uint8)):
+        path = tmp_path / f"image-{image.shape[0]}.png"
+        write_png(path, image)
+        with Image.open(path) as read:
+            assert read.mode == "RGB" and read.size == (image.shape[1], image.shape[0])
+            np.testing.assert_array_equal(np.asarray(read), image)

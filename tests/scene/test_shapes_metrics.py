@@ -119,6 +119,11 @@ def test_pruned_distance_equals_brute_force_on_seeded_points():
     tris = np.asarray(ball.triangles)
     brute = np.array([point_triangle_distances(tris, p).min() for p in points])
     np.testing.assert_allclose(distance_to_surface(points, ball), brute, rtol=0, atol=1e-12)
+    # Points in a small box (as an overlap's are) leave out most triangles before the spheres.
+    for centre in (np.asarray(ball.vertices)[3], np.zeros(3), np.array([0.0, 1.2, 0.3])):
+        cluster = centre + rng.normal(size=(200, 3)) * 0.02
+        brute = np.array([point_triangle_distances(tris, p).min() for p in cluster])
+        np.testing.assert_allclose(distance_to_surface(cluster, ball), brute, rtol=0, atol=1e-12)
 
 
 def point_triangle_distances(tris: np.ndarray, p: np.ndarray) -> np.ndarray:
