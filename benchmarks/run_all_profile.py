@@ -80,6 +80,7 @@ def main() -> None:
             parts = {p: seconds[p] for p in PARTS[:-1]}
             parts["other"] = total - sum(parts.values())
             rows.append((name, scene.frame, total, parts))
+            del scene  # gone before the next is built, so that it gets this one's fields (core.pool)
             print(f"  {name}: {total:.1f} s", file=sys.stderr, flush=True)
         t_end = time.perf_counter()
         report.write_index(root, list(args.scenes))

@@ -80,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--force", action="store_true",
                      help="write into an output folder that holds other files (never overwriting them)")
     run.add_argument("--quiet", action="store_true", help="no progress lines")
+    run.add_argument("--jobs", type=_positive_int, default=None,
+                     help="with `all`: scenes run side by side in this many processes (default: one per core, "
+                          "at most 4; 1 runs them in this process, with progress lines)")
     sweep = sub.add_parser(
         "sweep",
         help="the speed/accuracy study: every setting combination per scene, sweep.csv + pareto.png",
@@ -179,6 +182,69 @@ def _run_one(config, args, out) -> tuple[int, dict | None]:
     return 0, metrics
 
 
+def default_jobs() -> int:
+    """Processes for `run all`: one per core, at most MAX_JOBS."""
+    return max(1, min(os.cpu_count() or 1, MAX_JOBS))
+
+
+# `run all` runs at most this many scenes side by side by default (each process holds a Taichi
+# program and compiles the frame kernels once).
+MAX_JOBS = 4
+
+
+def _run_all_here(names, args, root) -> dict:
+    """Each scene in turn in this process: {name: _run_one's status}."""
+    from .scene.builtin import scene_config
+
+    codes = {}
+    for name in names:
+        codes[name] = _run_one(scene_config(name), args, root / name)[0]
+        if codes[name] == INTERRUPTED:
+            break
+    return codes
+
+
+def _run_scene_in_worker(name: str, args, out) -> int:
+    """One scene of `run all` in a worker process (spawned: a forked child of an initialised
+    Taichi hangs), its progress lines left out; the worker runs further scenes with the
+    kernels it compiled."""
+    from .scene.builtin import scene_config
+
+    args.quiet = True
+    return _run_one(scene_config(name), args, out)[0]
+
+
+def _run_all_in_processes(names, args, root, jobs: int) -> dict:
+    """The scenes in `jobs` worker processes, the longest first (the soft one has the most
+    frames and the costliest measure), each scene's files as a run in this process would
+    write them: {name: _run_one's status}."""
+    import copy
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    if not args.quiet:
+        print(f"taichi-dcd: running {len(names)} scenes in {jobs} processes (--jobs)", file=sys.stderr)
+    order = sorted(names, key=lambda n: n != "soft-ball-on-spike")
+    codes = {}
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures = {pool.submit(_run_scene_in_worker, name, copy.copy(args), root / name): name for name in order}
+        for future in as_completed(futures):
+            name = futures[future]
+            try:
+                codes[name] = future.result()
+            except Exception as exc:  # noqa: BLE001 — a crashed worker is that scene's failure
+                print(f"taichi-dcd: error: {name}: the worker process failed ({type(exc).__name__}: {exc})",
+                      file=sys.stderr)
+                codes[name] = 1
+    except KeyboardInterrupt:
+        pool.shutdown(wait=False, cancel_futures=True)
+        print("taichi-dcd: interrupted; finished scenes are in " + str(root), file=sys.stderr)
+        return {**codes, "": INTERRUPTED}
+    pool.shutdown()
+    return codes
+
+
 def _cmd_run(args) -> int:
     from pathlib import Path
 
@@ -199,14 +265,13 @@ def _cmd_run(args) -> int:
                 print(f"taichi-dcd: error: {path} was not written by this tool and would be overwritten; "
                       "choose another --out", file=sys.stderr)
                 return 2
-        status, finished = 0, []
-        for name in builtin_names():
-            code, _ = _run_one(scene_config(name), args, root / name)
-            if code == INTERRUPTED:
-                return 1
-            status = max(status, code)
-            if (root / name / "metrics.json").is_file():
-                finished.append(name)
+        names = builtin_names()
+        jobs = min(args.jobs or default_jobs(), len(names))
+        codes = _run_all_in_processes(names, args, root, jobs) if jobs > 1 else _run_all_here(names, args, root)
+        if INTERRUPTED in codes.values():
+            return 1
+        status = max(codes.values(), default=0)
+        finished = [name for name in names if (root / name / "metrics.json").is_file()]
         ours = [index.name] + ([] if args.no_frames else [sheet.name])
         write_json_atomic(root / MANIFEST, {"written_by": "taichi-dcd", "files": ours})
         if not args.no_frames:
