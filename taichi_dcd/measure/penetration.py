@@ -149,7 +149,8 @@ def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 
     """Unsigned distance (m) of each point (n, 3) to the mesh's surface, exactly: each
     triangle t lies within the sphere (c_t, r_t) around its centroid, so |p − c_t| + r_t
     bounds p's distance from above and |p − c_t| − r_t from below; only the triangles whose
-    lower bound does not exceed the smallest upper bound are measured."""
+    lower bound does not exceed the smallest upper bound (or the distance to the triangle
+    with the nearest centre) are measured."""
     if len(points) == 0:
         return np.zeros(0)
     tris = np.asarray(mesh.triangles)
@@ -163,7 +164,13 @@ def distance_to_surface(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 
         p = points[start:start + step]
         to_centre = np.linalg.norm(p[:, None, :] - centre[None], axis=2)
         upper = (to_centre + radius[None]).min(axis=1)
-        rows, cols = np.nonzero(to_centre - radius[None] <= upper[:, None])
+        # The distance to the triangle with the nearest centre is an upper bound too, and for
+        # a point on or near the surface (the overlap's are) a far tighter one: ~5 candidates
+        # a point instead of ~35 on the soft ball. The nearest triangle stays a candidate, so
+        # the distance is the same to the bit; the slack keeps rounding from dropping it.
+        first = np.argmin(to_centre, axis=1)
+        upper = np.minimum(upper, np.linalg.norm(closest_points_on_triangles(tris[first], p) - p, axis=1))
+        rows, cols = np.nonzero(to_centre - radius[None] <= upper[:, None] * (1.0 + 1e-9) + 1e-300)
         closest = closest_points_on_triangles(tris[cols], p[rows])
         d = np.linalg.norm(closest - p[rows], axis=1)
         out = np.full(len(p), np.inf)
