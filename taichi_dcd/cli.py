@@ -204,39 +204,75 @@ def _run_all_here(names, args, root) -> dict:
     return codes
 
 
-def _run_scene_in_worker(name: str, args, out) -> int:
-    """One scene of `run all` in a worker process (spawned: a forked child of an initialised
-    Taichi hangs), its progress lines left out; the worker runs further scenes with the
-    kernels it compiled."""
+def _run_scenes_in_worker(names: list[str], args, root) -> dict:
+    """Scenes of `run all` one after another in a worker process (spawned: a forked child of an
+    initialised Taichi hangs), without progress lines; the later ones run with the kernels the
+    first compiled. Returns {name: _run_one's status}."""
     from .scene.builtin import scene_config
 
     args.quiet = True
-    return _run_one(scene_config(name), args, out)[0]
+    codes = {}
+    for name in names:
+        codes[name] = _run_one(scene_config(name), args, root / name)[0]
+    return codes
+
+
+# Relative cost of a frame of a scene with a soft body (more substeps, a 1,280-triangle
+# membrane to measure) against a rigid scene's, for sharing scenes out among workers.
+SOFT_FRAME_COST = 5.0
+
+
+def plan_workers(scenes: list[tuple[str, int, bool]], jobs: int) -> list[list[str]]:
+    """Scenes (name, frames, has a soft body) shared out among at most `jobs` workers so that
+    no worker compiles both the soft and the rigid frame kernel: workers go to the two kinds
+    in proportion to their frames (weighted by SOFT_FRAME_COST), at least one each, and each
+    kind's scenes to its workers longest first, each to the least loaded."""
+    kinds = {}
+    for name, frames, soft in scenes:
+        kinds.setdefault(soft, []).append((name, frames * (SOFT_FRAME_COST if soft else 1.0)))
+    total = sum(cost for items in kinds.values() for _, cost in items)
+    plans = []
+    left = jobs
+    for k, (soft, items) in enumerate(sorted(kinds.items(), key=lambda kv: -sum(c for _, c in kv[1]))):
+        share = sum(c for _, c in items) / total
+        workers = left if k == len(kinds) - 1 else max(1, min(left - (len(kinds) - 1 - k), round(jobs * share)))
+        workers = max(1, min(workers, len(items)))
+        left -= workers
+        loads = [[0.0, []] for _ in range(workers)]
+        for name, cost in sorted(items, key=lambda item: -item[1]):
+            least = min(loads, key=lambda load: load[0])
+            least[0] += cost
+            least[1].append(name)
+        plans += [names for _, names in loads]
+    return plans
 
 
 def _run_all_in_processes(names, args, root, jobs: int) -> dict:
-    """The scenes in `jobs` worker processes, the longest first (the soft one has the most
-    frames and the costliest measure), each scene's files as a run in this process would
-    write them: {name: _run_one's status}."""
+    """The scenes in `jobs` worker processes (plan_workers), each scene's files as a run in
+    this process would write them: {name: _run_one's status}."""
     import copy
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    from .scene.builtin import scene_config
+
+    configs = {name: scene_config(name) for name in names}
+    plans = plan_workers([(name, c.sim.frames, any(b.kind == "soft" for b in c.bodies))
+                          for name, c in configs.items()], jobs)
     if not args.quiet:
-        print(f"taichi-dcd: running {len(names)} scenes in {jobs} processes (--jobs)", file=sys.stderr)
-    order = sorted(names, key=lambda n: n != "soft-ball-on-spike")
+        print(f"taichi-dcd: running {len(names)} scenes in {len(plans)} processes (--jobs)", file=sys.stderr)
     codes = {}
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+    pool = ProcessPoolExecutor(max_workers=len(plans), mp_context=multiprocessing.get_context("spawn"))
     try:
-        futures = {pool.submit(_run_scene_in_worker, name, copy.copy(args), root / name): name for name in order}
+        futures = {pool.submit(_run_scenes_in_worker, plan, copy.copy(args), root): plan for plan in plans}
         for future in as_completed(futures):
-            name = futures[future]
             try:
-                codes[name] = future.result()
-            except Exception as exc:  # noqa: BLE001 — a crashed worker is that scene's failure
-                print(f"taichi-dcd: error: {name}: the worker process failed ({type(exc).__name__}: {exc})",
-                      file=sys.stderr)
-                codes[name] = 1
+                codes.update(future.result())
+            except Exception as exc:  # noqa: BLE001 — a crashed worker fails the scenes it had
+                plan = futures[future]
+                print(f"taichi-dcd: error: the worker process running {', '.join(plan)} failed "
+                      f"({type(exc).__name__}: {exc})", file=sys.stderr)
+                codes.update({name: 1 for name in plan if name not in codes})
     except KeyboardInterrupt:
         pool.shutdown(wait=False, cancel_futures=True)
         print("taichi-dcd: interrupted; finished scenes are in " + str(root), file=sys.stderr)
