@@ -127,7 +127,8 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
     rules = rules or ContactRules()
     field_set = m.field_set
     parts = field_set.parts
-    if "solver" not in parts:
+    fresh = "solver" not in parts
+    if fresh:
         rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1)
         parts["solver"] = _allocate(rows, m.has_soft)
         parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft)
@@ -138,12 +139,12 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
         parts[key] = SolverFields(parts["model"], parts["state"], parts["solver"], rules, has_spin_friction,
                                   carry_capacity=parts["solver"]["carry_tri"].shape[0])
     sim = parts[key]
-    _fill(sim, parts["solver"], m, state)
+    _fill(sim, parts["solver"], m, state, fresh)
     return sim
 
 
-def _fill(sim: SolverFields, fields: dict, m: Model, state: State) -> None:
-    """Every solver field of this scene: its data, or zeros."""
+def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) -> None:
+    """Every solver field of this scene: its data, or zeros (a fresh set's fields are zero)."""
     kind = m.body_kind_np
     real = runtime.real_dtype()
     rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
@@ -161,10 +162,17 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State) -> None:
     }
     if m.has_soft:
         data["tri_sharp_edges"] = sharp_edge_bits(m, rest_x)
-    for name, fld in fields.items():
-        values = data.get(name)
-        if values is None:
-            fld.fill(0)
-        else:
-            fld.from_numpy(pool.padded(values, fld.shape[0]))
+    for name, values in data.items():
+        fields[name].from_numpy(pool.padded(values, fields[name].shape[0]))
+    if not fresh:
+        _zero(tuple(fld for name, fld in fields.items() if name not in data))
     sim.box_margin_np = box_margin  # (B,) the grid pads soft bodies' boxes by it too
+
+
+@ti.kernel
+def _zero(fields: ti.template()):
+    """Every element of every field in `fields` (a tuple) to zero, in one launch (a fill per
+    field would compile a kernel for each)."""
+    for k in ti.static(range(len(fields))):
+        for index in ti.grouped(fields[k]):
+            fields[k][index] = ti.zero(fields[k][index])  # not *= 0: NaN * 0 is NaN
