@@ -165,8 +165,14 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
     for name, values in data.items():
         fields[name].from_numpy(pool.padded(values, fields[name].shape[0]))
     if not fresh:
-        _zero(tuple(fld for name, fld in fields.items() if name not in data))
+        scratch = [fld for name, fld in fields.items() if name not in data]
+        for start in range(0, len(scratch), ZERO_BATCH):
+            _zero(tuple(scratch[start:start + ZERO_BATCH]))
     sim.box_margin_np = box_margin  # (B,) the grid pads soft bodies' boxes by it too
+
+
+# Fields zeroed per launch: Taichi warns of long compiles past 32 unrolled iterations.
+ZERO_BATCH = 16
 
 
 @ti.kernel
