@@ -32,6 +32,8 @@ class Penetration:
     depth: float = 0.0
     volume: float = 0.0
     pair: tuple[str, str] | None = None
+    pairs: int = 0        # pairs of bodies measured (not both static)
+    pairs_apart: int = 0  # of them, pairs whose boxes are apart: no overlap, nothing computed
 
 
 def _manifold(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray):
@@ -42,15 +44,18 @@ def _manifold(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray):
     return manifold3d.Manifold(mesh)
 
 
+def boxes_apart(a: trimesh.Trimesh, b: trimesh.Trimesh) -> bool:
+    """Whether the meshes' axis-aligned boxes are apart (then the meshes cannot overlap)."""
+    return bool(np.any(np.maximum(a.bounds[0], b.bounds[0]) > np.minimum(a.bounds[1], b.bounds[1])))
+
+
 def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, float]:
     """The solid A ∩ B as (vertices (n, 3), faces (m, 3), volume m³); empty when they do not
     overlap. Coordinates are shifted to the boxes' common centre for the boolean, so that
     large offsets do not cost precision."""
-    lo = np.maximum(a.bounds[0], b.bounds[0])
-    hi = np.minimum(a.bounds[1], b.bounds[1])
-    if np.any(lo > hi):
+    if boxes_apart(a, b):
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), 0.0
-    origin = 0.5 * (lo + hi)
+    origin = 0.5 * (np.maximum(a.bounds[0], b.bounds[0]) + np.minimum(a.bounds[1], b.bounds[1]))
     solid = _manifold(np.asarray(a.vertices), np.asarray(a.faces), origin) ^ \
         _manifold(np.asarray(b.vertices), np.asarray(b.faces), origin)
     out = solid.to_mesh64()
@@ -249,9 +254,12 @@ def body_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]]):
 
 def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetration:
     """The deepest pair and the total overlap volume over pairs of bodies (name, kind,
-    world mesh) that are not both static."""
+    world mesh) that are not both static, and how many pairs were measured and found apart."""
     result = Penetration()
+    meshes = {name: mesh for name, _, mesh in bodies}
     for name_a, name_b, depth, volume in body_pairs(bodies):
+        result.pairs += 1
+        result.pairs_apart += boxes_apart(meshes[name_a], meshes[name_b])
         result.volume += volume
         if depth > result.depth or (result.pair is None and volume > 0):
             result.depth, result.pair = depth, (name_a, name_b)

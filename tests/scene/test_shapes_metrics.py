@@ -103,6 +103,8 @@ def test_scene_measure_skips_static_pairs_and_names_the_deepest_pair():
     assert result.pair == ("block", "cube")
     assert result.depth == pytest.approx(0.003, rel=1e-9)
     assert result.volume == pytest.approx(0.25 * 0.003, rel=1e-6)
+    # Two pairs measured (ground-cube, block-cube); the cube's box is clear of the ground's.
+    assert (result.pairs, result.pairs_apart) == (2, 1)
 
 
 def test_pruned_distance_equals_brute_force_on_seeded_points():
