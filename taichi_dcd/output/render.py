@@ -89,9 +89,26 @@ def raster_triangle(key: ti.template(), a, b, c, t: ti.i32):
         x1 = ti.min(ti.cast(ti.ceil(ti.max(a.x, b.x, c.x)), ti.i32), width - 1)
         y0 = ti.max(ti.cast(ti.floor(ti.min(a.y, b.y, c.y)), ti.i32), 0)
         y1 = ti.min(ti.cast(ti.ceil(ti.max(a.y, b.y, c.y)), ti.i32), height - 1)
+        sign = ti.select(area > 0.0, 1.0, -1.0)
         for y in range(y0, y1 + 1):
-            for x in range(x0, x1 + 1):
-                px, py = x + 0.5, y + 0.5
+            # The row's span inside the three edge lines, widened by a pixel on each side: the
+            # exact test below still decides each pixel, it just skips those sure to be out.
+            py = y + 0.5
+            lo, hi = ti.cast(x0, float), ti.cast(x1, float) + 1.0
+            for e in ti.static(range(3)):
+                p, q = ti.static((b, c), (c, a), (a, b))[e]
+                slope = sign * (p.y - q.y)  # the edge function is slope·px + offset (times sign)
+                offset = sign * (p.x * (q.y - py) - (p.y - py) * q.x)
+                if slope > 0.0:
+                    lo = ti.max(lo, -offset / slope)
+                elif slope < 0.0:
+                    hi = ti.min(hi, -offset / slope)
+                elif offset < 0.0:
+                    hi = lo - 4.0
+            start = ti.max(x0, ti.cast(ti.floor(lo - 0.5), ti.i32) - 1)
+            end = ti.min(x1, ti.cast(ti.ceil(hi - 0.5), ti.i32) + 1)
+            for x in range(start, end + 1):
+                px = x + 0.5
                 w0 = ((b.x - px) * (c.y - py) - (b.y - py) * (c.x - px)) / area
                 w1 = ((c.x - px) * (a.y - py) - (c.y - py) * (a.x - px)) / area
                 w2 = 1.0 - w0 - w1
