@@ -131,20 +131,18 @@ def test_pruned_distance_equals_brute_force_on_seeded_points():
 def point_triangle_distances(tris: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Reference: distance from p to each triangle (n, 3, 3), the plain way: the distance
     to the plane if p projects inside the triangle, else to the nearest of its edges."""
-    out = []
-    for t in tris:
-        n = np.cross(t[1] - t[0], t[2] - t[0])
-        n = n / np.linalg.norm(n)
-        foot = p - (p - t[0]) @ n * n
-        if all(np.cross(t[(k + 1) % 3] - t[k], foot - t[k]) @ n >= 0 for k in range(3)):
-            out.append(abs((p - t[0]) @ n))
-            continue
-        edges = []
-        for k in range(3):
-            a, e = t[k], t[(k + 1) % 3] - t[k]
-            edges.append(np.linalg.norm(p - a - np.clip((p - a) @ e / (e @ e), 0, 1) * e))
-        out.append(min(edges))
-    return np.array(out)
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    n = n / np.linalg.norm(n, axis=1)[:, None]
+    height = np.einsum("ij,ij->i", p - tris[:, 0], n)
+    foot = p - height[:, None] * n
+    inside = np.ones(len(tris), bool)
+    edges = []
+    for k in range(3):
+        a, e = tris[:, k], tris[:, (k + 1) % 3] - tris[:, k]
+        inside &= np.einsum("ij,ij->i", np.cross(e, foot - a), n) >= 0
+        t = np.clip(np.einsum("ij,ij->i", p - a, e) / np.einsum("ij,ij->i", e, e), 0, 1)
+        edges.append(np.linalg.norm(p - a - t[:, None] * e, axis=1))
+    return np.where(inside, np.abs(height), np.min(edges, axis=0))
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e-6, 1e3])
