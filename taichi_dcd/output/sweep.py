@@ -4,9 +4,9 @@ sweep.csv and pareto.png.
 
 A run is one scene at one setting, simulated as `taichi-dcd run NAME --no-frames` would
 (its metrics.json, metrics.csv and final meshes under runs/<scene>/<setting>/) and judged
-by the contact test's limits (metrics.verdict). Runs go to a pool of spawned processes
-(a forked child of an initialised Taichi hangs) or, with `ray_address`, to Ray tasks;
-either way one process per run, and the rows are the same.
+by the contact test's limits (metrics.verdict). Runs go to a pool of spawned worker
+processes (a forked child of an initialised Taichi hangs), each running one run after
+another, or, with `ray_address`, to Ray tasks; either way the rows are the same.
 """
 
 from __future__ import annotations
@@ -57,7 +57,8 @@ def run_one(run: SweepRun, out_root: str, arch: str = "cpu", cpu_threads: int | 
             frames: int | None = None) -> dict:
     """Simulate one run in this process and return its sweep.csv row (a dict of
     SWEEP_COLUMNS). Never raises: a bad scene or a failed simulation is a row whose
-    verdict says so. Meant to run in a fresh process (Taichi is initialised here)."""
+    verdict says so. Meant to run in a worker process (Taichi is initialised here with the
+    run's precision; a worker's later runs of the same precision reuse its kernels)."""
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
     row = {"scene": run.scene, "substeps": run.substeps, "iterations": run.iterations,
            "precision": run.precision, "passed": False}
@@ -126,10 +127,10 @@ def _run_in_pool(jobs, workers: int, bar: ProgressBar) -> list[dict]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     rows: list[dict | None] = [None] * len(jobs)
-    # One process per run: spawn (a forked child of an initialised Taichi hangs), and
-    # never reused, so each run compiles and runs in a fresh Taichi.
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               max_tasks_per_child=1)
+    # Spawned workers (a forked child of an initialised Taichi hangs), each running one run
+    # after another: a run after the first of its precision and kind of scene reuses the
+    # kernels compiled for it (core.pool), which a fresh process per run compiled again.
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
     try:
         futures = {pool.submit(run_one, *job): k for k, job in enumerate(jobs)}
         for future in as_completed(futures):
