@@ -208,13 +208,8 @@ def _run_scenes_in_worker(names: list[str], args, root) -> dict:
     """Scenes of `run all` one after another in a worker process (spawned: a forked child of an
     initialised Taichi hangs), without progress lines; the later ones run with the kernels the
     first compiled. Returns {name: _run_one's status}."""
-    from .scene.builtin import scene_config
-
     args.quiet = True
-    codes = {}
-    for name in names:
-        codes[name] = _run_one(scene_config(name), args, root / name)[0]
-    return codes
+    return _run_all_here(names, args, root)
 
 
 # Relative cost of a frame of a scene with a soft body (more substeps, a 1,280-triangle
