@@ -75,7 +75,7 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
             deepest = max(deepest, scene.penetration(x).depth)
         if (f + 1) % 50 == 0 or settled:
             print(f"  {name}: frame {f + 1}  t = {scene.time:.2f} s  speed {speed:.1e} m/s  "
-                  f"stepping {step_wall:.0f} s", file=sys.stderr, flush=True)
+                  f"stepping {step_wall:.0f} s  asleep {len(scene.sleeping_bodies())}", file=sys.stderr, flush=True)
         if settled:
             break
     final = scene.penetration(scene.vertices())

@@ -109,7 +109,7 @@ def main() -> None:
     rows.append(("NumPy reference (per pair)", "f64", "1", rate_ref))
     for precision in ("f32", "f64"):
         for threads in (1, all_threads):
-            rows.append((f"taichi_dcd full method", precision, str(threads),
+            rows.append(("taichi_dcd full method", precision, str(threads),
                          bench_ours(a, b, precision, threads, args.repeat)))
         rows.append(("  one pair per iteration (kernel)", precision, "1",
                      bench_one_pair_path(a, b, precision, args.repeat)))

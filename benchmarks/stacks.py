@@ -7,11 +7,12 @@ Each box has a place where it should rest: where it was set, lowered by the gaps
 (1e-5 m a row). Prints, per scene and thread count: wall time per simulated second (the first
 frame, which compiles, not timed), the farthest any box vertex ends from its place (m), the
 deepest overlap and the overlap volume at the end by the independent measure
-(measure/penetration.py), the largest body speed at the end, and the targets of the parallel
+(measure/penetration.py), the largest body speed at the end, the bodies asleep at the end
+(the scenes sleep; --no-sleep simulates them throughout), and the targets of the parallel
 contact solve (each box within 1e-5 m of its place, overlap <= 1e-9 m^3; 0.2 s per simulated
 second for the stack, 0.3 s for the pyramid).
 
-Usage: python benchmarks/stacks.py [SCENE ...] [--seconds S] [--threads T[,T...]] [--arch cpu|cuda]
+Usage: python benchmarks/stacks.py [SCENE ...] [--seconds S] [--threads T[,T...]] [--arch cpu|cuda] [--no-sleep]
 """
 
 import argparse
@@ -41,12 +42,14 @@ def scene_of(name: str):
     return builtin_scene(name)
 
 
-def bench(name: str, seconds: float, arch: str, threads: int | None) -> dict:
+def bench(name: str, seconds: float, arch: str, threads: int | None, sleep: bool) -> dict:
     """One scene in this (fresh, spawned) process, so that its thread count is its own."""
     from taichi_dcd.scene.scene import Scene
 
     taichi_dcd.init(arch=arch, precision="f64", cpu_threads=threads)
-    scene = Scene(scene_of(name))
+    config = scene_of(name)
+    config.sim.sleep = sleep
+    scene = Scene(config)
     start = scene.vertices()
     places = start.copy()
     for body in scene.model.bodies:
@@ -68,7 +71,8 @@ def bench(name: str, seconds: float, arch: str, threads: int | None) -> dict:
     return dict(name=name, threads=threads, bodies=len(scene.model.bodies) - 1, sim_time=scene.time,
                 per_sim_s=wall / max(scene.time - scene.config.sim.frame_dt, 1e-12),
                 off_place=float(np.abs(x - places).max()), depth=final.depth, volume=final.volume,
-                speed=float(np.linalg.norm(scene.body_velocities(), axis=1).max()))
+                speed=float(np.linalg.norm(scene.body_velocities(), axis=1).max()),
+                asleep=len(scene.sleeping_bodies()), sleep=sleep)
 
 
 def main() -> None:
@@ -77,6 +81,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0, help="simulated seconds (default 3)")
     parser.add_argument("--threads", default=None, help="CPU thread counts, comma-separated (default: all)")
     parser.add_argument("--arch", default="cpu", choices=["cpu", "cuda"])
+    parser.add_argument("--no-sleep", action="store_true", help="simulate bodies at rest too (the scenes sleep)")
     args = parser.parse_args()
     unknown = [s for s in args.scenes if s not in SCENES]
     if unknown:
@@ -90,18 +95,19 @@ def main() -> None:
     if any(t is not None and t < 1 for t in threads):
         parser.error("--threads must be positive")
     print(machine_line())
-    print(f"arch {args.arch}, f64, each scene's own setting, {args.seconds:g} s simulated")
+    print(f"arch {args.arch}, f64, each scene's own setting, {args.seconds:g} s simulated, "
+          f"sleeping {'off' if args.no_sleep else 'on'}")
     rows = []
     for name in args.scenes:
         for t in threads:
             with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-                rows.append(pool.submit(bench, name, args.seconds, args.arch, t).result())
+                rows.append(pool.submit(bench, name, args.seconds, args.arch, t, not args.no_sleep).result())
     print(f"{'scene':8} {'boxes':>5} {'threads':>7} {'wall s/sim s':>12} {'target':>6} {'off place m':>11} "
-          f"{'depth m':>9} {'volume m3':>9} {'speed m/s':>9}")
+          f"{'depth m':>9} {'volume m3':>9} {'speed m/s':>9} {'asleep':>6}")
     for r in rows:
         print(f"{r['name']:8} {r['bodies']:>5} {str(r['threads'] or 'all'):>7} {r['per_sim_s']:>12.2f} "
               f"{TARGET_WALL[r['name']]:>6.1f} {r['off_place']:>11.1e} {r['depth']:>9.1e} {r['volume']:>9.1e} "
-              f"{r['speed']:>9.1e}")
+              f"{r['speed']:>9.1e} {r['asleep'] if r['sleep'] else '-':>6}")
     print("targets: each box within 1e-5 m of its place, overlap volume <= 1e-9 m^3")
 
 

@@ -1,11 +1,11 @@
 """The in-kernel all-pairs broad phase of small scenes: every triangle pair of different bodies
-(not both static, neither a hidden face) whose padded boxes overlap, serially."""
+(not both static or asleep, neither a hidden face) whose padded boxes overlap, serially."""
 
 import taichi as ti
 
 from ..collision.broadphase import BOX_SLACK, boxes_overlap
 from ..core import runtime
-from ..core.model import STATIC
+from ..contact.sleeping import is_moving, wake_if_touched
 
 vec3 = ti.math.vec3
 ivec3 = ti.types.vector(3, ti.i32)
@@ -26,9 +26,10 @@ def triangle_box(sim: ti.template(), t: ti.i32):
 
 @ti.func
 def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
-    """Serial all-pairs broad phase: triangle pairs of different bodies (not both static),
-    neither a hidden static face, whose padded boxes overlap, written to rows.tri; returns
-    their number (more than the capacity on overflow)."""
+    """Serial all-pairs broad phase: triangle pairs of different bodies (not both static or
+    asleep: solver.sleep), neither a hidden static face, whose padded boxes overlap, written to
+    rows.tri; returns their number (more than the capacity on overflow). A sleeping body whose
+    box meets a moving body's is woken first."""
     n_b = sim.model.body_count[0]
     for t in range(sim.model.tri_count[0]):
         triangle_box(sim, t)
@@ -40,11 +41,16 @@ def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
             hi = ti.max(hi, sim.tri_hi[t])
         sim.body_lo[b] = lo
         sim.body_hi[b] = hi
+    # A sleeping body whose box meets a moving body's wakes before any pair is chosen.
+    for ba in range(n_b):
+        for bb in range(ba + 1, n_b):
+            if boxes_overlap(sim.body_lo[ba], sim.body_hi[ba], sim.body_lo[bb], sim.body_hi[bb]):
+                wake_if_touched(sim, ba, bb)
     n = 0
     capacity = rows.tri.shape[0]
     for ba in range(n_b):
         for bb in range(ba + 1, n_b):
-            if ((sim.model.body_kind[ba] != STATIC or sim.model.body_kind[bb] != STATIC)
+            if ((is_moving(sim, ba) or is_moving(sim, bb))
                     and boxes_overlap(sim.body_lo[ba], sim.body_hi[ba], sim.body_lo[bb], sim.body_hi[bb])):
                 for ta in range(sim.model.body_tri_range[ba][0], sim.model.body_tri_range[ba][1]):
                     if (sim.model.tri_hidden[ta] == 0

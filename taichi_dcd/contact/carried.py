@@ -7,6 +7,7 @@ import taichi as ti
 from ..core.model import STATIC
 from .anchors import anchor_world, involves_soft
 from .rows import has_pair_row, start_row
+from .sleeping import is_moving
 
 ivec2 = ti.types.vector(2, ti.i32)
 
@@ -81,11 +82,13 @@ def carried_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, max_pus
     projection; without the other's row, which detection made before the push, it ends
     the substep inside that one and the next substep pushes it back, a cycle that never
     comes to rest. Such a row holds C = N·(p_other − p_moved) ≥ 0 and does nothing
-    unless it is crossed. Rows go after row total-1 while they fit; returns the row count."""
+    unless it is crossed. A pair of which neither body is moving (static or asleep) is not
+    offered. Rows go after row total-1 while they fit; returns the row count."""
     n_rows = total
     for j in range(sim.carry_count[0]):
         pair = sim.carry_tri[j]
-        if n_rows < rows.tri.shape[0] and not has_pair_row(sim, rows, pair[0], pair[1]):
+        moving = is_moving(sim, sim.model.tri_body[pair[0]]) or is_moving(sim, sim.model.tri_body[pair[1]])
+        if n_rows < rows.tri.shape[0] and moving and not has_pair_row(sim, rows, pair[0], pair[1]):
             bm, bo, normal = sim.carry_bary_moved[j], sim.carry_bary_other[j], sim.carry_normal[j]
             p_m = anchor_world(sim, pair[0], bm, False)
             p_o = anchor_world(sim, pair[1], bo, False)

@@ -314,11 +314,12 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "contact_buffer_growths": scene.solver.contact_growths,
         "frames_with_extra_substeps": scene.fast_frames,
         "most_substeps_in_a_frame": scene.most_substeps,
+        "sleeping_bodies": scene.sleeping_bodies(),
         "settings": {
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,
             "iterations": sim.iterations, "precision": runtime.precision(), "arch": runtime.settings()["arch"],
             "broad_phase": "grid" if scene.solver.use_grid else "all-pairs",
-            "stop_when_settled": sim.stop_when_settled, "length_scale": sim.length_scale,
+            "stop_when_settled": sim.stop_when_settled, "length_scale": sim.length_scale, "sleep": sim.sleep,
         },
     }
     write_json_atomic(out / "metrics.json", metrics)

@@ -20,6 +20,12 @@ DEFAULT_ITERATIONS = 8
 # A scene has settled once every vertex has moved slower than SETTLE_SPEED (m/s) for SETTLE_TIME (s).
 SETTLE_SPEED = 1e-3
 SETTLE_TIME = 0.2
+# With sim.sleep, an island of touching rigid bodies whose every point has moved slower than
+# SLEEP_SPEED (m/s) for SLEEP_TIME (s) falls asleep: it is no longer simulated until a moving
+# body comes near it (solver/sleep.py). Longer than SETTLE_TIME, so that a scene that stops when
+# settled stops before anything sleeps.
+SLEEP_SPEED = 1e-3
+SLEEP_TIME = 0.5
 # A body about to hit another moves at most this far (m, times length_scale) per substep:
 # discrete detection finds a contact only once the bodies overlap, so a body landing at
 # speed v is up to v·h deep before its first correction (2 mm keeps Erleben's drops below
@@ -45,6 +51,8 @@ class SimConfig:
     length_scale: float = 1.0
     # Largest motion per substep towards another body (m); None: IMPACT_DEPTH·length_scale.
     impact_depth: float | None = None
+    # Islands of rigid bodies at rest fall asleep (SLEEP_SPEED, SLEEP_TIME) until touched.
+    sleep: bool = False
 
     @property
     def max_impact_motion(self) -> float:
@@ -59,6 +67,16 @@ class SimConfig:
     @property
     def settle_time(self) -> float:
         return SETTLE_TIME * math.sqrt(self.length_scale)
+
+    @property
+    def sleep_speed(self) -> float:
+        """m/s below which a rigid body's points must stay for sleep_time s before it may sleep."""
+        return SLEEP_SPEED * math.sqrt(self.length_scale)
+
+    @property
+    def sleep_time(self) -> float:
+        """s an island must stay slower than sleep_speed to fall asleep; 0 with sleep off."""
+        return SLEEP_TIME * math.sqrt(self.length_scale) if self.sleep else 0.0
 
 
 @dataclass
@@ -93,7 +111,7 @@ class SceneConfig:
 
 _SIM_KEYS = {"frame_dt": "positive", "frames": "count", "substeps": "count", "iterations": "count",
              "gravity": "vec3", "stop_when_settled": "bool", "length_scale": "positive",
-             "impact_depth": "positive"}
+             "impact_depth": "positive", "sleep": "bool"}
 _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "params": "table",
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg",

@@ -85,7 +85,8 @@ class Scene:
         self.warnings += precision_warnings(self.model, self.vertices(), config.sim)
         self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
-                                 length_scale=config.sim.length_scale, rules=rules)
+                                 length_scale=config.sim.length_scale, rules=rules,
+                                 sleep_speed=config.sim.sleep_speed, sleep_time=config.sim.sleep_time)
         # Bodies placed into each other: the independent measure's pairs deeper than rounding.
         self.start_overlaps = [
             {"bodies": [a, b], "depth": depth, "volume": volume}
@@ -189,6 +190,10 @@ class Scene:
                     f"bodies {bodies[a].name!r} and {bodies[b].name!r} may close in by more than the impact "
                     f"depth {sim.max_impact_motion:.3g} m: frames like this run up to {for_impact} substeps")
         return max(needed, for_impact)
+
+    def sleeping_bodies(self) -> list[str]:
+        """Names of the bodies asleep now (sim.sleep: islands at rest are not simulated until touched)."""
+        return [b.name for b, asleep in zip(self.model.bodies, self.solver.asleep_numpy()) if asleep]
 
     def body_vertices(self, name: str) -> np.ndarray:
         """World-space vertices (n, 3) of a body, in the order of `body_faces(name)`."""

@@ -13,7 +13,12 @@ vec3 = ti.math.vec3
 def predict_body(sim: ti.template(), b: ti.i32, h: float, gravity: vec3, kick: float):
     """Explicit prediction of a rigid body's pose (Müller 2020, Alg. 2, lines 4-8);
     kick scales the velocity update (1, or 1/2 on a run's first substep)."""
-    if sim.model.body_kind[b] == RIGID:
+    if sim.model.body_kind[b] == RIGID and sim.body_asleep[b] == 1:
+        # Asleep (solver.sleep): held where it is, at rest.
+        sim.state.body_x_prev[b] = sim.state.body_x[b]
+        sim.state.body_q_prev[b] = sim.state.body_q[b]
+        sim.body_theta[b] = vec3(0.0)
+    elif sim.model.body_kind[b] == RIGID:
         sim.state.body_v[b] += kick * h * (gravity + sim.model.body_force[b] * sim.model.body_inv_mass[b])
         sim.state.body_x_prev[b] = sim.state.body_x[b]
         sim.state.body_x[b] += h * sim.state.body_v[b]

@@ -9,6 +9,7 @@ import taichi as ti
 
 from ..collision.contacts import PairResults
 from ..contact.rows import ContactRows
+from ..contact.sleeping import wake_near
 from .integrate import place_vertex, predict
 from .substep import (
     restore_state,
@@ -93,7 +94,11 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
 @ti.kernel
 def begin_substep(sim: ti.template(), h: float, gravity: vec3, kick: float,
                    vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
-    """Predict every body and particle in parallel and place the vertices for the grid."""
+    """Wake the sleeping bodies a moving one comes near (serially), predict every body and
+    particle in parallel and place the vertices for the grid."""
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        wake_near(sim)
     predict(sim, h, gravity, kick)
     for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)

@@ -81,12 +81,13 @@ class XPBDSolver:
     the depenetration speed scales with its square root. rules: the contact rules compiled
     in (contact.rules.ContactRules; all by default). bound: how far (m) from the centre of the
     bodies' start box a body may go before it counts as having left the scene (default
-    LEFT_SCENE_SIZES scene sizes).
+    LEFT_SCENE_SIZES scene sizes). sleep_time: s an island of rigid bodies must stay slower than
+    sleep_speed (m/s, at every point) to fall asleep (solver.sleep); 0 (default): never.
     """
 
     def __init__(self, model: Model, state: State, gravity=(0.0, -9.8, 0.0), broad_phase: str = "auto",
                  contact_capacity: int | None = None, bound: float | None = None, length_scale: float = 1.0,
-                 rules: ContactRules | None = None):
+                 rules: ContactRules | None = None, sleep_speed: float = 0.0, sleep_time: float = 0.0):
         runtime.ensure_init()
         self.model = model
         self.state = state
@@ -110,6 +111,8 @@ class XPBDSolver:
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
         self.sim = solver_fields(model, state, rules)
+        self.sim.sleep_speed[0] = float(sleep_speed)
+        self.sim.sleep_time[0] = float(sleep_time)
         if self.use_grid:
             tri_static = kind[m.tri_body_np] == STATIC
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
@@ -152,6 +155,10 @@ class XPBDSolver:
         normal = c.normal.to_numpy()[:n].astype(np.float64)
         return {"moved_tri": tri[:, 0], "other_tri": tri[:, 1], "point": point, "target": target, "normal": normal,
                 "depth": np.einsum("nd,nd->n", normal, target - point)}
+
+    def asleep_numpy(self) -> np.ndarray:
+        """(B,) bool: which bodies are asleep (solver.sleep)."""
+        return self.sim.body_asleep.to_numpy()[: self.model.n_bodies] == 1
 
     def body_summary_numpy(self) -> np.ndarray:
         """(B, 10) float64: per body velocity (3), motion about it (1: |ω| rigid, particle speed

@@ -8,6 +8,7 @@ from ..collision.all_pairs import candidate_pairs
 from ..contact.carried import carried_rows, keep_rows
 from ..contact.pair_rows import add_pair_contact, collide_candidates
 from ..contact.rows import forget_rows
+from ..contact.sleeping import is_moving, wake_if_touched, wake_near
 from ..contact.soft_rows import add_resting_contacts
 from ..contact.vertex_rows import add_vertex_contacts
 from ..core.model import RIGID
@@ -20,6 +21,7 @@ from .contact_solve import (
 )
 from .integrate import place_vertex, predict, update_velocities
 from .islands import block_body, pair_block, solve_blocks
+from .sleep import update_sleep
 from .soft import solve_edge, solve_volume
 
 vec3 = ti.math.vec3
@@ -85,6 +87,7 @@ def solve_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, iterations: t
     solve_velocities(sim, rows, n, iterations, h, g_norm)
     if ti.static(sim.rules.carried_rows):
         keep_rows(sim, rows, n, max_push)
+    update_sleep(sim, h)
 
 
 @ti.func
@@ -95,6 +98,7 @@ def substep_all_pairs(sim: ti.template(), rows: ti.template(), iterations: ti.i3
     contact rows, whichever more, above the buffer's capacity if it overflowed; contact rows
     solved)."""
     capacity = rows.tri.shape[0]
+    wake_near(sim)
     predict(sim, h, gravity, kick)
     for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)
@@ -128,9 +132,14 @@ def substep_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.templa
     kernel. Returns the rows solved (serial)."""
     forget_rows(sim)
     n = 0
+    if sim.sleep_time[0] > 0.0:
+        for k in range(n_pairs):  # a sleeping body that a moving one touches wakes first
+            wake_if_touched(sim, sim.model.tri_body[pairs.pair[k][0]], sim.model.tri_body[pairs.pair[k][1]])
     for k in range(n_pairs):
-        n = add_pair_contact(sim, rows, n, pairs.pair[k], ti.cast(pairs.side[k], ti.i32), pairs.depth[k],
-                             pairs.normal[k], pairs.point[k], depenetration * h)
+        pair = pairs.pair[k]
+        if is_moving(sim, sim.model.tri_body[pair[0]]) or is_moving(sim, sim.model.tri_body[pair[1]]):
+            n = add_pair_contact(sim, rows, n, pair, ti.cast(pairs.side[k], ti.i32), pairs.depth[k],
+                                 pairs.normal[k], pairs.point[k], depenetration * h)
     _, n = rows_after_pairs(sim, rows, n, depenetration * h)
     solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
     return n
@@ -150,6 +159,8 @@ def save_state(sim: ti.template()):
         sim.saved_body[1][b] = sim.state.body_q[b]
         sim.saved_body[2][b] = sim.state.body_v[b]
         sim.saved_body[3][b] = sim.state.body_w[b]
+        sim.saved_body[4][b] = sim.body_asleep[b]
+        sim.saved_body[5][b] = sim.body_calm[b]
     if ti.static(sim.model.has_soft):
         for i in range(sim.model.vertex_count[0]):
             sim.saved_vertex[0][i] = sim.state.vertex_x[i]
@@ -170,6 +181,8 @@ def restore_state(sim: ti.template()):
         sim.state.body_q[b] = sim.saved_body[1][b]
         sim.state.body_v[b] = sim.saved_body[2][b]
         sim.state.body_w[b] = sim.saved_body[3][b]
+        sim.body_asleep[b] = sim.saved_body[4][b]
+        sim.body_calm[b] = sim.saved_body[5][b]
     if ti.static(sim.model.has_soft):
         for i in range(sim.model.vertex_count[0]):
             sim.state.vertex_x[i] = sim.saved_vertex[0][i]

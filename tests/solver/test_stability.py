@@ -229,6 +229,38 @@ def test_box_resting_on_a_free_box_holds_still(f64_scene, tmp_path):
     np.testing.assert_allclose(top, [0.2, 1.5, 0.0], atol=2e-4)
 
 
+def test_a_resting_box_sleeps_and_wakes_when_another_lands_on_it(f64_scene):
+    """sim.sleep: a box resting on the ground falls asleep once it has been calm for 0.5 s, and
+    holds still; a box dropped onto it wakes it before they touch, so the landing is the same as
+    without sleeping (both boxes' heights within 1e-9 m through the impact; woken only on
+    touching, the lower box was pushed into the ground without its rows and jumped 5 mm), and
+    the two then rest and sleep together, 0.3 m apart as set."""
+    bodies = [GROUND,
+              {"name": "low", "kind": "rigid", "shape": "box", "params": {"size": [0.4, 0.2, 0.4]},
+               "position": [0.0, 0.1001, 0.0]},
+              {"name": "drop", "kind": "rigid", "shape": "box", "params": {"size": [0.2, 0.2, 0.2]},
+               "position": [0.1, 10.4, 0.05]}]
+    runs = {}
+    for sleep in (False, True):
+        scene = Scene(scene_from_dict({"sim": {"sleep": sleep}, "body": bodies}, name="sleep"))
+        heights, asleep = [], []
+        for _ in range(160):
+            scene.step(1)
+            heights.append(scene.body_positions()[1:, 1].copy())
+            asleep.append(scene.sleeping_bodies())
+        runs[sleep] = (scene, np.array(heights), asleep)
+    scene, heights, asleep = runs[True]
+    assert asleep[40] == [] and asleep[60] == ["low"]           # calm from ~0.05 s, asleep by 0.6 s
+    assert np.all(heights[60:140, 0] == heights[60, 0])          # asleep: not one bit of motion
+    impact = int(np.argmax(np.diff(runs[False][1][:, 1]) > 0))   # the frame the drop stopped falling
+    assert "low" not in asleep[impact]
+    np.testing.assert_allclose(heights[impact - 5:impact + 10], runs[False][1][impact - 5:impact + 10], atol=1e-9)
+    scene.step(80)
+    assert scene.sleeping_bodies() == ["low", "drop"]
+    np.testing.assert_allclose(scene.body_positions()[1:, 1], [0.1, 0.3], atol=1e-5)
+    assert scene.penetration().depth <= 1e-5
+
+
 @pytest.mark.slow
 def test_stack_of_five_boxes_holds_still(f64_scene, tmp_path):
     """Five unit boxes stacked 0.1 mm apart, each 5 cm further along x and turned 7° more
