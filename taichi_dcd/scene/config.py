@@ -20,10 +20,10 @@ DEFAULT_ITERATIONS = 8
 # A scene has settled once every vertex has moved slower than SETTLE_SPEED (m/s) for SETTLE_TIME (s).
 SETTLE_SPEED = 1e-3
 SETTLE_TIME = 0.2
-# With sim.sleep, an island of touching rigid bodies whose every point has moved slower than
-# SLEEP_SPEED (m/s) for SLEEP_TIME (s) falls asleep: it is no longer simulated until a moving
-# body comes near it (solver/sleep.py). Longer than SETTLE_TIME, so that a scene that stops when
-# settled stops before anything sleeps.
+# With sim.sleep, an island of touching rigid bodies none of whose points has strayed more than
+# SLEEP_SPEED·SLEEP_TIME (m) from where it was over the last SLEEP_TIME (s) falls asleep: it is
+# no longer simulated until a moving body comes near it (solver/sleep.py). Longer than
+# SETTLE_TIME, so that a scene that stops when settled stops before anything sleeps.
 SLEEP_SPEED = 1e-3
 SLEEP_TIME = 0.5
 # A body about to hit another moves at most this far (m, times length_scale) per substep:
@@ -70,12 +70,12 @@ class SimConfig:
 
     @property
     def sleep_speed(self) -> float:
-        """m/s below which a rigid body's points must stay for sleep_time s before it may sleep."""
+        """m/s: a body may sleep once its points have strayed less than sleep_speed·sleep_time in sleep_time."""
         return SLEEP_SPEED * math.sqrt(self.length_scale)
 
     @property
     def sleep_time(self) -> float:
-        """s an island must stay slower than sleep_speed to fall asleep; 0 with sleep off."""
+        """s an island must stay calm (sleep_speed) to fall asleep; 0 with sleep off."""
         return SLEEP_TIME * math.sqrt(self.length_scale) if self.sleep else 0.0
 
 

@@ -56,14 +56,16 @@ _LAYOUT = {
     "saved_carry_tri": ("carry", "ivec2"), "saved_carry_bary_moved": ("carry", "vec3"),
     "saved_carry_bary_other": ("carry", "vec3"), "saved_carry_normal": ("carry", "vec3"),
     "saved_carry_count": ("one", "int"),
-    # Sleeping (solver.sleep): 1 for a body asleep; how long (s) each rigid body has been calm;
-    # per island root the least of its bodies' calm times; the speed (m/s) and time (s) a body
+    # Sleeping (solver.sleep): 1 for a body asleep; how long (s) each rigid body has been calm and
+    # its pose when its calm began; per island root the least of its bodies' calm times; the speed (m/s) and time (s) a body
     # must be calm to sleep (time 0: never).
     "body_asleep": ("bodies", "int"), "body_calm": ("bodies", "scalar"), "island_calm": ("bodies", "scalar"),
+    "body_calm_x": ("bodies", "vec3"), "body_calm_q": ("bodies", "vec4"),
     "sleep_speed": ("one", "scalar"), "sleep_time": ("one", "scalar"),
     # A copy of the state at the start of a frame, restored when the frame overflows the contact buffer.
     "saved_body_x": ("bodies", "vec3"), "saved_body_q": ("bodies", "vec4"), "saved_body_v": ("bodies", "vec3"),
     "saved_body_w": ("bodies", "vec3"), "saved_body_asleep": ("bodies", "int"), "saved_body_calm": ("bodies", "scalar"),
+    "saved_body_calm_x": ("bodies", "vec3"), "saved_body_calm_q": ("bodies", "vec4"),
 }
 _SOFT_LAYOUT = {
     "edge_lambda": ("edges", "scalar"),
@@ -118,8 +120,8 @@ class SolverFields:
         self.carry_capacity = carry_capacity
         self.__dict__.update(fields)
         self.saved_carry = [fields[f"saved_carry_{k}"] for k in ("tri", "bary_moved", "bary_other", "normal", "count")]
-        self.saved_body = [fields[f"saved_body_{k}"] for k in "xqvw"] + [fields["saved_body_asleep"],
-                                                                         fields["saved_body_calm"]]
+        self.saved_body = [fields[f"saved_body_{k}"] for k in ("x", "q", "v", "w", "asleep", "calm", "calm_x",
+                                                                "calm_q")]
         self.saved_vertex = [fields["saved_vertex_x"], fields["saved_vertex_v"]] if model.has_soft else None
         self.box_margin_np = np.zeros(0)
 

@@ -161,6 +161,8 @@ def save_state(sim: ti.template()):
         sim.saved_body[3][b] = sim.state.body_w[b]
         sim.saved_body[4][b] = sim.body_asleep[b]
         sim.saved_body[5][b] = sim.body_calm[b]
+        sim.saved_body[6][b] = sim.body_calm_x[b]
+        sim.saved_body[7][b] = sim.body_calm_q[b]
     if ti.static(sim.model.has_soft):
         for i in range(sim.model.vertex_count[0]):
             sim.saved_vertex[0][i] = sim.state.vertex_x[i]
@@ -183,6 +185,8 @@ def restore_state(sim: ti.template()):
         sim.state.body_w[b] = sim.saved_body[3][b]
         sim.body_asleep[b] = sim.saved_body[4][b]
         sim.body_calm[b] = sim.saved_body[5][b]
+        sim.body_calm_x[b] = sim.saved_body[6][b]
+        sim.body_calm_q[b] = sim.saved_body[7][b]
     if ti.static(sim.model.has_soft):
         for i in range(sim.model.vertex_count[0]):
             sim.state.vertex_x[i] = sim.saved_vertex[0][i]
