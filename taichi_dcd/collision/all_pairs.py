@@ -5,7 +5,7 @@ import taichi as ti
 
 from ..collision.broadphase import BOX_SLACK, boxes_overlap
 from ..core import runtime
-from ..contact.sleeping import is_moving, wake_if_touched
+from ..contact.sleeping import is_moving
 
 vec3 = ti.math.vec3
 ivec3 = ti.types.vector(3, ti.i32)
@@ -28,8 +28,7 @@ def triangle_box(sim: ti.template(), t: ti.i32):
 def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
     """Serial all-pairs broad phase: triangle pairs of different bodies (not both static or
     asleep: solver.sleep), neither a hidden static face, whose padded boxes overlap, written to
-    rows.tri; returns their number (more than the capacity on overflow). A sleeping body whose
-    box meets a moving body's is woken first."""
+    rows.tri; returns their number (more than the capacity on overflow)."""
     n_b = sim.model.body_count[0]
     for t in range(sim.model.tri_count[0]):
         triangle_box(sim, t)
@@ -41,11 +40,6 @@ def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
             hi = ti.max(hi, sim.tri_hi[t])
         sim.body_lo[b] = lo
         sim.body_hi[b] = hi
-    # A sleeping body whose box meets a moving body's wakes before any pair is chosen.
-    for ba in range(n_b):
-        for bb in range(ba + 1, n_b):
-            if boxes_overlap(sim.body_lo[ba], sim.body_hi[ba], sim.body_lo[bb], sim.body_hi[bb]):
-                wake_if_touched(sim, ba, bb)
     n = 0
     capacity = rows.tri.shape[0]
     for ba in range(n_b):

@@ -1,12 +1,12 @@
 """Which bodies a substep simulates: not the static ones, nor those asleep (solver.sleep), and
-waking a sleeping body that a moving one comes near. The broad phases and the carried rows
-ask this before they make a body's rows."""
+waking a sleeping body that a moving one comes near before the substep's prediction. The broad
+phases and the carried rows ask this before they make a body's rows."""
 
 import taichi as ti
 
-vec3 = ti.math.vec3
-
 from ..core.model import STATIC
+
+vec3 = ti.math.vec3
 
 # A sleeping body wakes when a moving body's box comes within this fraction of the larger of the
 # two bodies' reaches (wake_near): a substep or more before they touch, so that it is already

@@ -57,8 +57,8 @@ _LAYOUT = {
     "saved_carry_bary_other": ("carry", "vec3"), "saved_carry_normal": ("carry", "vec3"),
     "saved_carry_count": ("one", "int"),
     # Sleeping (solver.sleep): 1 for a body asleep; how long (s) each rigid body has been calm and
-    # its pose when its calm began; per island root the least of its bodies' calm times; the speed (m/s) and time (s) a body
-    # must be calm to sleep (time 0: never).
+    # its pose when its calm began; per island root the least of its bodies' calm times; the
+    # speed (m/s) and time (s) a body must be calm to sleep (time 0: never).
     "body_asleep": ("bodies", "int"), "body_calm": ("bodies", "scalar"), "island_calm": ("bodies", "scalar"),
     "body_calm_x": ("bodies", "vec3"), "body_calm_q": ("bodies", "vec4"),
     "sleep_speed": ("one", "scalar"), "sleep_time": ("one", "scalar"),

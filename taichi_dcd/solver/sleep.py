@@ -2,12 +2,13 @@
 simulated, and wakes when a moving body comes near it.
 
 A rigid body is calm while every point of it stays within sleep_speed·sleep_time of where it
-was when its calm began (update_sleep). An island (the rigid bodies joined by rows, as the projection's
-blocks join them: solver.islands) falls asleep once each of its bodies has been calm for
-sim.sleep_time seconds; its bodies then hold still (v = ω = 0), are not predicted, and their
-pairs with static or sleeping bodies get no rows. A sleeping body wakes when its box meets the
-box of a moving one (a rigid body awake, or any soft body); the bodies it rests on wake in the
-substeps after, as the woken body's box meets theirs. sleep_time = 0 switches sleeping off.
+was when its calm began (update_sleep). An island (the rigid bodies joined by rows, as the
+projection's blocks join them: solver.islands) falls asleep once each of its bodies has been
+calm for sim.sleep_time seconds; its bodies then hold still (v = ω = 0), are not predicted, and
+their pairs with static or sleeping bodies get no rows. Before each substep a sleeping body
+wakes when a moving one (a rigid body awake, or any soft body) comes near it
+(contact.sleeping.wake_near); the bodies it rests on wake in the substeps after, as it comes
+near theirs. sleep_time = 0 switches sleeping off.
 """
 
 import taichi as ti

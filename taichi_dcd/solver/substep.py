@@ -8,7 +8,7 @@ from ..collision.all_pairs import candidate_pairs
 from ..contact.carried import carried_rows, keep_rows
 from ..contact.pair_rows import add_pair_contact, collide_candidates
 from ..contact.rows import forget_rows
-from ..contact.sleeping import is_moving, wake_if_touched, wake_near
+from ..contact.sleeping import is_moving, wake_near
 from ..contact.soft_rows import add_resting_contacts
 from ..contact.vertex_rows import add_vertex_contacts
 from ..core.model import RIGID
@@ -132,9 +132,6 @@ def substep_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.templa
     kernel. Returns the rows solved (serial)."""
     forget_rows(sim)
     n = 0
-    if sim.sleep_time[0] > 0.0:
-        for k in range(n_pairs):  # a sleeping body that a moving one touches wakes first
-            wake_if_touched(sim, sim.model.tri_body[pairs.pair[k][0]], sim.model.tri_body[pairs.pair[k][1]])
     for k in range(n_pairs):
         pair = pairs.pair[k]
         if is_moving(sim, sim.model.tri_body[pair[0]]) or is_moving(sim, sim.model.tri_body[pair[1]]):
