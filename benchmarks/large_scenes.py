@@ -13,7 +13,7 @@ the end, with the overlap volume at the end.
 
 Usage: python benchmarks/large_scenes.py [SCENE ...] [--frames N] [--measure-every K]
                                          [--threads T] [--arch cpu|cuda]
-                                         [--substeps S] [--iterations I]
+                                         [--substeps S] [--iterations I] [--progress-every P]
 """
 
 import argparse
@@ -37,7 +37,7 @@ def peak_rss_mib() -> float:
 
 
 def bench(name: str, frames: int | None, measure_every: int, arch: str, threads: int | None,
-          substeps: int | None = None, iterations: int | None = None) -> dict:
+          substeps: int | None = None, iterations: int | None = None, progress_every: int = 50) -> dict:
     """One scene in this (fresh, spawned) process, so that its peak memory is its own."""
     from taichi_dcd.output.run import SettleClock
     from taichi_dcd.scene.scene import Scene
@@ -73,9 +73,9 @@ def bench(name: str, frames: int | None, measure_every: int, arch: str, threads:
         settled = clock.update(scene.time, speed)
         if (f + 1) % measure_every == 0:
             deepest = max(deepest, scene.penetration(x).depth)
-        if (f + 1) % 50 == 0 or settled:
+        if (f + 1) % progress_every == 0 or settled:
             print(f"  {name}: frame {f + 1}  t = {scene.time:.2f} s  speed {speed:.1e} m/s  "
-                  f"stepping {step_wall:.0f} s  asleep {len(scene.sleeping_bodies())}", file=sys.stderr, flush=True)
+                  f"stepping {step_wall:.1f} s  substeps {scene.most_substeps}  asleep {len(scene.sleeping_bodies())}", file=sys.stderr, flush=True)
         if settled:
             break
     final = scene.penetration(scene.vertices())
@@ -104,6 +104,7 @@ def main() -> None:
     parser.add_argument("--arch", default="cpu", choices=["cpu", "cuda"])
     parser.add_argument("--substeps", type=int, default=None, help="substeps per frame (default: the scene's)")
     parser.add_argument("--iterations", type=int, default=None, help="solver sweeps per substep (default: the scene's)")
+    parser.add_argument("--progress-every", type=int, default=50, help="frames between progress lines (default 50)")
     args = parser.parse_args()
     unknown = [s for s in args.scenes if s not in LARGE]
     if unknown:
@@ -121,7 +122,7 @@ def main() -> None:
     for name in args.scenes:
         with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
             rows.append(pool.submit(bench, name, args.frames, args.measure_every, args.arch, args.threads,
-                                     args.substeps, args.iterations).result())
+                                     args.substeps, args.iterations, args.progress_every).result())
     print(head)
     for r in rows:
         print(f"{r['name']:21} {r['setting']:>8} {r['tris']:>6} {r['bodies']:>6} {r['frames']:>6} {str(r['settled']):>7} "

@@ -27,6 +27,8 @@ TOL_ULPS = 32.0
 
 _settings: dict | None = None
 
+CUDA_POOL_GB = 4.0
+
 
 def init(
     arch: str = "cpu",
@@ -74,6 +76,10 @@ def init(
     )
     if cpu_threads is not None:
         kwargs["cpu_max_num_threads"] = int(cpu_threads)
+    if arch == "cuda":
+        # Taichi's CUDA backend serves every field from a pool it takes at start (1 GB
+        # unless told); the pile's fields and contact rows need about half that on the CPU.
+        kwargs["device_memory_GB"] = CUDA_POOL_GB
     if offline_cache and (folder := kernel_cache.leased_folder()) is not None:
         kwargs["offline_cache_file_path"] = folder
     ti.init(**kwargs)
