@@ -386,12 +386,12 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_list(args) -> int:
-    from .scene.builtin import ALL, LARGE, STACKS, describe
+    from .scene.builtin import ALL, KNOWN, describe
 
-    width = max(len(n) for n in [*ALL, *LARGE, *STACKS])
+    width = max(len(n) for n in KNOWN)
     for name in ALL:
         print(f"{name:<{width}}  {describe(name)}")
-    for name in [*LARGE, *STACKS]:
+    for name in KNOWN[len(ALL):]:
         print(f"{name:<{width}}  {describe(name)} (not in `all`)")
     return 0
 

@@ -1,4 +1,5 @@
-"""Broad phase: every pair of triangles of different bodies whose boxes overlap, once.
+"""Broad phase: every pair of triangles of different bodies whose boxes overlap, once, and of
+one body with self-collision (a soft body's own triangles that share no vertex).
 
 Each triangle gets a world-space axis-aligned box inflated by a contact margin
 (and by the narrow phase's zero tolerance, see BOX_SLACK),
@@ -15,14 +16,14 @@ bucket, a prefix sum and a scatter. A pair of boxes is then found once:
 - only in the cell holding the lower corner of the two boxes' intersection, a
   cell both boxes cover, computed in integers from the boxes' own lower cells.
 Static–static pairs are never reported. Pairs come out as global triangle
-indices (a, b) with body[a] < body[b], in no particular order.
+indices (a, b) with body[a] <= body[b], in no particular order.
 """
 
 import numpy as np
 import taichi as ti
 
 from ..core import runtime
-from ..core.geometry import vec3
+from ..core.geometry import shares_vertex, vec3
 from ..core.launch import Launcher
 
 ivec2 = ti.types.vector(2, ti.i32)
@@ -105,6 +106,7 @@ def _bin_group(
     tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_box: ti.types.ndarray(dtype=vec3, ndim=2),
     body_group: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    body_self: ti.types.ndarray(dtype=ti.i32, ndim=1),
     body_box: ti.types.ndarray(dtype=vec3, ndim=2),
     group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
     bucket_end: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -120,8 +122,8 @@ def _bin_group(
 ) -> ti.i32:
     """Hash table of one group's triangles, in one launch (kernel launches cost more than a
     small query's work): boxes of the group's bodies (from their vertices) and triangles,
-    each triangle's level (-1 for a moving triangle whose box meets no other body's box: it
-    can have no pair), count per bucket with the range of bodies in it, prefix sum
+    each triangle's level (-1 for a moving triangle whose box meets no other body's box, on a
+    body without self-collision: it can have no pair), count per bucket with the range of bodies in it, prefix sum
     (blocked; serial over blocks), scatter. Each entry carries its triangle's body, cell
     and box, so that scanning a bucket reads contiguous memory. Returns the number of
     (cell, triangle) entries; if that exceeds the entry capacity nothing is scattered and
@@ -173,7 +175,7 @@ def _bin_group(
             lo -= pad
             hi += pad
             body = info[3]
-            is_active = not cull
+            is_active = not cull or body_self[body] != 0
             if cull:
                 for k in range(n_bodies):
                     if k != body and boxes_overlap(lo, hi, body_box[k, 0], body_box[k, 1]):
@@ -254,19 +256,31 @@ def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32
 
 
 @ti.func
+def pairable(tri: ti.template(), body_self: ti.template(), t: ti.i32, body_t: ti.i32, u: ti.i32,
+             body_u: ti.i32) -> bool:
+    """Whether triangles t and u may pair: different bodies, or one body with self-collision
+    and no shared vertex."""
+    ok = body_u != body_t
+    if not ok and body_self[body_t] != 0:
+        ok = not shares_vertex(ivec3(tri[t][0], tri[t][1], tri[t][2]), ivec3(tri[u][0], tri[u][1], tri[u][2]))
+    return ok
+
+
+@ti.func
 def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i32, c: ivec3, inv_h: float,
                  first: ti.i32, end: ti.i32, entries: ti.template(), pairs: ti.template(),
-                 group_count: ti.template()):
+                 group_count: ti.template(), bodies: ti.template()):
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
-    `level`, belong to another body and have an overlapping box. entries: (tri_level,
-    entry_key, entry_box), the levels and one table's entries, a tuple made with ti.static."""
+    `level`, may pair with t (pairable) and have an overlapping box. entries: (tri_level,
+    entry_key, entry_box), the levels and one table's entries; bodies: (tri, body_self); both
+    tuples made with ti.static."""
     tri_level, entry_key, entry_box = ti.static(entries[0], entries[1], entries[2])
     for f in range(first, end):
         key = entry_key[f]
-        if (key[1] != body_t and key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
+        if (key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
                 and boxes_overlap(lo_t, hi_t, entry_box[f, 0], entry_box[f, 1])):
             u = key[0]
-            if tri_level[u] == level:
+            if tri_level[u] == level and pairable(bodies[0], bodies[1], t, body_t, u, key[1]):
                 report_pair(t, body_t, lo_t, u, key[1], entry_box[f, 0], c, inv_h, pairs, group_count)
 
 
@@ -274,7 +288,7 @@ def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i3
 def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti.i32, inv_h0: float,
                   tri_level: ti.template(), tri_box: ti.template(), group_count: ti.template(),
                   bucket_end: ti.template(), entry_key: ti.template(), entry_box: ti.template(),
-                  pairs: ti.template()):
+                  pairs: ti.template(), bodies: ti.template()):
     """Report t's partners binned in one table (MOVING or STATIC) at levels above t's own,
     looked up in the (at most 2 per axis) cells t's box covers at each such level."""
     mask = bucket_end.shape[0] - 2
@@ -290,12 +304,13 @@ def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti
                         c = ivec3(x, y, z)
                         b = bucket_of(level, c, mask)
                         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
-                                     ti.static((tri_level, entry_key, entry_box)), pairs, group_count)
+                                     ti.static((tri_level, entry_key, entry_box)), pairs, group_count, bodies)
 
 
 @ti.kernel
 def _find_pairs(
     tri: ti.types.ndarray(dtype=ivec5, ndim=1),
+    body_self: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_box: ti.types.ndarray(dtype=vec3, ndim=2),
     group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
@@ -312,7 +327,8 @@ def _find_pairs(
     inv_h0: float,
     serial: ti.template(),
 ) -> ti.i32:
-    """Candidate pairs (box overlap, different bodies, not both static); returns their number,
+    """Candidate pairs (box overlap, different bodies or one with self-collision sharing no
+    vertex, not both static); returns their number,
     which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored)."""
     group_count[0, LEVELS + 2] = 0
     top_moving = -1
@@ -343,15 +359,17 @@ def _find_pairs(
         level = tri_level[t]
         inv_h = level_inv_h(inv_h0, level)
         b = bucket_of(level, c, moving_mask)
-        # A bucket holding one body's triangles only has no pair to offer.
+        # A bucket holding one body's triangles only has no pair to offer (unless the body
+        # collides with itself).
         bodies = moving_bodies[b]
-        end = moving_end[b + 1] if bodies[0] != bodies[1] else 0
+        end = moving_end[b + 1] if bodies[0] != bodies[1] or body_self[bodies[0]] != 0 else 0
         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
-                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count)
+                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, ti.static((tri, body_self)))
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
             scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
-                         ti.static((tri_level, static_key, static_box)), pairs, group_count)
+                         ti.static((tri_level, static_key, static_box)), pairs, group_count,
+                         ti.static((tri, body_self)))
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
@@ -360,13 +378,13 @@ def _find_pairs(
             t = moving_active[s]
             body_t = tri[t][3]
             query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs)
+                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self)))
             query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
-                          static_end, static_key, static_box, pairs)
+                          static_end, static_key, static_box, pairs, ti.static((tri, body_self)))
         else:
             t = static_active[s - n_moving]
             query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs)
+                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self)))
     return group_count[0, LEVELS + 2]
 
 
@@ -446,10 +464,12 @@ class UniformGrid:
     far along any axis since returns the same pairs, a superset of the exact ones
     (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
     never binned, so in no pair (faces hidden against another static body, contact/hidden_faces.py).
+    body_self (n_bodies,) bool: bodies whose own triangles pair too (those sharing no vertex).
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
-                 margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0, tri_hidden=None):
+                 margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0, tri_hidden=None,
+                 body_self=None):
         runtime.ensure_init()
         tri_indices = np.ascontiguousarray(tri_indices, dtype=np.int32).reshape(-1, 3)
         m = len(tri_indices)
@@ -500,6 +520,13 @@ class UniformGrid:
         self.particle_body.from_numpy(particle_body)
         self.body_group = ti.ndarray(ti.i32, shape=n_bodies)
         self.body_group.from_numpy(body_group)
+        self.body_self = ti.ndarray(ti.i32, shape=n_bodies)
+        self.body_self.fill(0)
+        if body_self is not None:
+            flags = np.asarray(body_self, dtype=bool)
+            if len(flags) < n_bodies or np.any(flags[:n_bodies] & (body_group == STATIC)):
+                raise ValueError("body_self needs one flag per body, and a static body cannot collide with itself")
+            self.body_self.from_numpy(flags[:n_bodies].astype(np.int32))
         self.body_box = ti.ndarray(real3, shape=(n_bodies, 2))
         # Per group: triangles binned per level [0, LEVELS), binned triangles [LEVELS],
         # entries [LEVELS + 1]; [0, LEVELS + 2] counts the pairs of a query.
@@ -537,7 +564,8 @@ class UniformGrid:
         pad = self.margin + (self._skin_length() if group == MOVING else 0.0)
         while True:
             entries = self._launch(_bin_group, particle_x, self.particle_body, self.tri, self.tri_level, self.tri_box,
-                                   self.body_group, self.body_box, self.group_count, *table.arrays(),
+                                   self.body_group, self.body_self, self.body_box, self.group_count,
+                                   *table.arrays(),
                                    group, pad, 1.0 / self.cell_size, runtime.serial_loops(self.n_tris))
             if entries <= table.capacity:
                 break
@@ -577,7 +605,7 @@ class UniformGrid:
         moving, static = self.tables
         serial = runtime.serial_loops(moving.entries)
         while True:
-            n = self._launch(_find_pairs, self.tri, self.tri_level, self.tri_box, self.group_count,
+            n = self._launch(_find_pairs, self.tri, self.body_self, self.tri_level, self.tri_box, self.group_count,
                              moving.bucket_end, moving.bucket_bodies, moving.entry_key, moving.entry_box,
                              moving.active, static.bucket_end, static.entry_key, static.entry_box, static.active,
                              self.pairs, 1.0 / self.cell_size, serial)
@@ -588,5 +616,5 @@ class UniformGrid:
         return n
 
     def pairs_numpy(self) -> np.ndarray:
-        """The candidate pairs of the last query, (n, 2) global triangle indices, body[a] < body[b]."""
+        """The candidate pairs of the last query, (n, 2) global triangle indices, body[a] <= body[b]."""
         return self.pairs.to_numpy()[: self.n_pairs]

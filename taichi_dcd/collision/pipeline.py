@@ -78,16 +78,18 @@ class CollisionPipeline:
     the solver makes its touching contacts. keep_pressed: likewise the pairs facing each
     other with one triangle wholly behind the other's plane (narrowphase.pressed_through),
     from which the solver makes contacts for soft patches sagged through a face.
+    body_self (n_bodies,) bool: bodies whose own triangles collide (as for `UniformGrid`).
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
-                 skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None):
+                 skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None,
+                 body_self=None):
         self.keep_touching = bool(keep_touching)
         self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
-                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden)
+                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self)
         self.contacts = Contacts(contact_capacity)
         self._launch = Launcher()
 

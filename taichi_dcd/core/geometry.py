@@ -93,3 +93,14 @@ def barycentric(p: vec3, a: vec3, b: vec3, c: vec3) -> vec3:
         w = (d00 * d21 - d01 * d20) / den
         out = vec3(1.0 - v - w, v, w)
     return out
+
+
+@ti.func
+def shares_vertex(a, b) -> bool:
+    """Whether two triangles of one mesh, given as vertex indices a and b (ivec3), share a
+    vertex: such neighbours meet by construction and are never a self-contact."""
+    shared = False
+    for i in ti.static(range(3)):
+        for j in ti.static(range(3)):
+            shared = shared or a[i] == b[j]
+    return shared

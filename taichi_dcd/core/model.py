@@ -39,6 +39,7 @@ class BodyInfo:
     rest_volume: float
     thickness: float = float("inf")  # m, the thinnest wall (tunnelling.mesh_thickness)
     reach: float = 0.0               # m, largest distance of a vertex from the centre of mass
+    self_collision: bool = False     # a soft body whose own triangles collide
 
 
 @dataclass
@@ -56,7 +57,9 @@ class Model:
     vertex_body (V,) i32; vertex_local (V,) vec3 body-frame offset from the centre of mass;
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
     indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
-    static body's (contact/hidden_faces.py: never in contact). edge_indices (E,) ivec2; edge_rest (E,) m.
+    static body's (contact/hidden_faces.py: never in contact). With soft bodies only:
+    body_self_collision (B,) i32 1 where a soft body's own triangles collide; edge_indices (E,)
+    ivec2; edge_rest (E,) m.
     """
 
     bodies: list[BodyInfo]
@@ -89,6 +92,7 @@ class Model:
     tri_indices: ti.Field
     tri_body: ti.Field
     tri_hidden: ti.Field
+    body_self_collision: ti.Field | None = None
     edge_indices: ti.Field | None = None
     edge_rest: ti.Field | None = None
     tri_indices_np: np.ndarray = field(default=None, repr=False)
@@ -130,7 +134,7 @@ MODEL_FIELD_NAMES = ("body_count", "vertex_count", "tri_count", "edge_count", "b
                      "body_inertia", "body_inv_inertia", "body_force", "body_friction", "body_restitution",
                      "body_vertex_range", "body_tri_range", "body_compliance", "body_damping", "body_drag",
                      "body_spin_friction", "body_rest_volume", "vertex_body", "vertex_local", "vertex_inv_mass",
-                     "tri_indices", "tri_body", "tri_hidden", "edge_indices", "edge_rest")
+                     "tri_indices", "tri_body", "tri_hidden", "body_self_collision", "edge_indices", "edge_rest")
 STATE_FIELD_NAMES = ("body_x", "body_q", "body_v", "body_w", "body_x_prev", "body_q_prev", "vertex_x",
                      "vertex_x_prev", "vertex_v")
 
@@ -153,6 +157,7 @@ def model_fields(rows: dict[str, int], has_soft: bool) -> dict:
             body_drag=scalar_field(b), body_spin_friction=scalar_field(b), body_rest_volume=scalar_field(b),
             vertex_body=scalar_field(v, i32), vertex_local=vec_field(v), vertex_inv_mass=scalar_field(v),
             tri_indices=vec_field(t, 3, i32), tri_body=scalar_field(t, i32), tri_hidden=scalar_field(t, i32),
+            body_self_collision=scalar_field(b, i32) if has_soft else None,
             edge_indices=vec_field(e, 2, i32) if has_soft else None,
             edge_rest=scalar_field(e) if has_soft else None,
             body_x=vec_field(b), body_q=vec_field(b, 4), body_v=vec_field(b), body_w=vec_field(b),

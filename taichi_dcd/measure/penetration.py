@@ -271,6 +271,9 @@ def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetra
 PASS_FINAL_DEPTH = 1e-4     # m
 PASS_FINAL_OVERLAP = 1e-9   # m³
 PASS_MAX_DEPTH = 5e-3       # m, over the whole run (PyBullet and MuJoCo reach 15–23 mm)
+# A soft body with self_collision: none of its own triangles cross at the end, none deeper
+# than this in any frame (measure.self_intersection; metrics.json "self_intersection").
+PASS_MAX_SELF_DEPTH = 1e-3  # m
 
 
 def verdict(metrics: dict, length_scale: float = 1.0) -> str | None:
@@ -287,4 +290,9 @@ def verdict(metrics: dict, length_scale: float = 1.0) -> str | None:
         return f"final overlap {metrics['final_overlap_volume']:.1e} m³"
     if metrics["max_penetration_depth"] > PASS_MAX_DEPTH * length_scale:
         return f"max depth {metrics['max_penetration_depth']:.1e} m"
+    for name, measured in metrics.get("self_intersection", {}).items():
+        if measured["self_collision"] and measured["final_pairs"] > 0:
+            return f"{name}: {measured['final_pairs']} pairs of its triangles cross at the end"
+        if measured["self_collision"] and measured["max_depth"] > PASS_MAX_SELF_DEPTH * length_scale:
+            return f"{name}: crossed itself by {measured['max_depth']:.1e} m"
     return None

@@ -90,6 +90,71 @@ def _edge_crosses(p, q, a, b, c, tol) -> np.ndarray:
     return straddles & inside
 
 
+def _clip(poly: np.ndarray, count: np.ndarray, normal: np.ndarray, point: np.ndarray):
+    """Polygons poly (k, MAX_CORNERS, 3), their first count[k] corners valid, cut to the part where
+    normal·(x − point) >= 0 (Sutherland-Hodgman); returns the new (poly, count)."""
+    k = len(poly)
+    out = np.zeros_like(poly)
+    n_out = np.zeros(k, np.int64)
+    rows = np.arange(k)
+    side = np.einsum("ij,ikj->ik", normal, poly - point[:, None, :])
+    for j in range(poly.shape[1]):
+        valid = j < count
+        nxt = np.where(j + 1 < count, j + 1, 0)
+        sj, sn = side[:, j], side[rows, nxt]
+        keep = valid & (sj >= 0.0)
+        out[rows[keep], n_out[keep]] = poly[keep, j]
+        n_out += keep
+        cut = valid & ((sj >= 0.0) != (sn >= 0.0))
+        t = sj[cut] / (sj[cut] - sn[cut])
+        out[rows[cut], n_out[cut]] = poly[cut, j] + t[:, None] * (poly[rows[cut], nxt[cut]] - poly[cut, j])
+        n_out += cut
+    return out, n_out
+
+
+MAX_CORNERS = 7  # a triangle cut by four planes has at most 3 + 4 corners
+
+
+def _depth_behind(tri: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """(k,) how deep the deepest point of tri (k, 3, 3) lies behind other's plane within other's
+    footprint: tri is cut to the prism over `other` along its normal and to the half-space
+    behind it, and the deepest corner of what is left counts (0 if nothing is left)."""
+    a, b, c = other[:, 0], other[:, 1], other[:, 2]
+    n = np.cross(b - a, c - a)
+    length = np.linalg.norm(n, axis=1)
+    unit = n / np.where(length > 0.0, length, 1.0)[:, None]
+    poly = np.zeros((len(tri), MAX_CORNERS, 3))
+    poly[:, :3] = tri
+    count = np.full(len(tri), 3, np.int64)
+    for p, q in ((a, b), (b, c), (c, a)):
+        poly, count = _clip(poly, count, np.cross(unit, q - p), p)
+    poly, count = _clip(poly, count, -unit, a)
+    behind = -np.einsum("ij,ikj->ik", unit, poly - a[:, None, :])
+    behind = np.where(np.arange(MAX_CORNERS)[None, :] < count[:, None], behind, 0.0)
+    return np.where(length > 0.0, np.maximum(behind.max(axis=1), 0.0), 0.0)
+
+
+def crossing_depths(tri_a: np.ndarray, tri_b: np.ndarray) -> np.ndarray:
+    """(k,) the depth of crossing triangle pairs tri_a[k], tri_b[k] ((k, 3, 3) m): of the two
+    triangles, the smaller depth of the deepest point of one behind the other's plane within
+    the other's footprint (_depth_behind), by polygon clipping: the least the crossing asks one
+    of them to move. Coordinates are taken relative to tri_a's first corner, so that a mesh far
+    from the origin loses no precision here."""
+    origin = tri_a[:, :1, :]
+    a, b = tri_a - origin, tri_b - origin
+    return np.minimum(_depth_behind(a, b), _depth_behind(b, a))
+
+
+def self_penetration(vertices: np.ndarray, faces: np.ndarray) -> tuple[int, float]:
+    """(number of crossing pairs, the deepest of them in m as crossing_depths has it) of one
+    mesh (vertices (n, 3) m, faces (m, 3)): pairs that share no vertex, found without the solver."""
+    pairs = crossing_pairs(vertices, faces)
+    if not len(pairs):
+        return 0, 0.0
+    corners = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    return len(pairs), float(crossing_depths(corners[pairs[:, 0]], corners[pairs[:, 1]]).max())
+
+
 def triangles_cross(tri_a: np.ndarray, tri_b: np.ndarray) -> np.ndarray:
     """(k,) True where triangle tri_a[k] and tri_b[k] (each (k, 3, 3), m) cross: an edge of one
     passes through the other's interior. Coordinates are taken relative to tri_a's first

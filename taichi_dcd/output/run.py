@@ -159,6 +159,8 @@ class FrameWriter:
 GIF_EVERY = 4
 CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", "potential_energy",
                "contact_count", "max_vertex_speed"]
+# With soft bodies: their own crossing triangle pairs and the deepest (Scene.self_penetration).
+SELF_COLUMNS = ["self_intersections", "self_penetration_depth"]
 
 
 class SettleClock:
@@ -221,6 +223,10 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     clock = SettleClock(sim)
     settled = False
     max_depth = 0.0
+    has_soft = scene.model.has_soft
+    columns = CSV_COLUMNS + (SELF_COLUMNS if has_soft else [])
+    self_measure = {b.name: {"self_collision": b.self_collision, "final_pairs": 0, "max_depth": 0.0}
+                    for b in scene.model.bodies if b.kind == "soft"}
     measured_pairs = apart_pairs = 0
     step_times = []             # wall time of each frame's simulation alone
     start = time.perf_counter()
@@ -249,8 +255,15 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             measured_pairs += pen.pairs
             apart_pairs += pen.pairs_apart
             max_depth = max(max_depth, pen.depth)
-            rows.append((scene.time, pen.depth, pen.volume, scene.kinetic_energy(), scene.potential_energy(),
-                         contacts, speed))
+            row = (scene.time, pen.depth, pen.volume, scene.kinetic_energy(), scene.potential_energy(),
+                   contacts, speed)
+            if has_soft:
+                per_body = scene.self_penetration(last_good)
+                for name, (crossing, self_depth) in per_body.items():
+                    self_measure[name]["final_pairs"] = crossing
+                    self_measure[name]["max_depth"] = max(self_measure[name]["max_depth"], self_depth)
+                row += (sum(c for c, _ in per_body.values()), max(d for _, d in per_body.values()))
+            rows.append(row)
             if writer:
                 writer.write(last_good)
             settled = clock.update(scene.time, speed)
@@ -275,7 +288,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     steady_time = sim.frame_dt * (len(step_times) - 1)
     with open(out / "metrics.csv.tmp", "w", newline="", encoding="utf-8") as fh:
         csv_writer = csv.writer(fh)
-        csv_writer.writerow(CSV_COLUMNS)
+        csv_writer.writerow(columns)
         csv_writer.writerows(rows)
     os.replace(out / "metrics.csv.tmp", out / "metrics.csv")
     for b in scene.model.bodies:
@@ -286,7 +299,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     if rows:
         from .report import PLOTS, plot_run
 
-        plot_run({name: np.array([r[k] for r in rows], dtype=np.float64) for k, name in enumerate(CSV_COLUMNS)},
+        plot_run({name: np.array([r[k] for r in rows], dtype=np.float64) for k, name in enumerate(columns)},
                  out / PLOTS, scene.name, sim.length_scale)
     final = rows[-1] if rows else (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
     metrics = {
@@ -315,6 +328,8 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
         "frames_with_extra_substeps": scene.fast_frames,
         "most_substeps_in_a_frame": scene.most_substeps,
         "sleeping_bodies": scene.sleeping_bodies(),
+        # Soft bodies only: pairs of a body's own triangles that cross (measure.self_intersection).
+        **({"self_intersection": self_measure} if has_soft else {}),
         "settings": {
             "frame_dt": sim.frame_dt, "dt": sim.frame_dt / sim.substeps, "substeps": sim.substeps,
             "iterations": sim.iterations, "precision": runtime.precision(), "arch": runtime.settings()["arch"],

@@ -49,6 +49,7 @@ class BodySpec:
     damping: float = 0.0
     drag: float = 0.0
     spin_friction: float = 0.0
+    self_collision: bool = False  # soft bodies: its own triangles collide (those sharing no vertex)
     source: str | None = None  # the mesh file, named in error messages
 
 
@@ -72,6 +73,8 @@ class ModelBuilder:
             raise ValueError(f"body {spec.name!r}: compliance must be >= 0, got {spec.compliance}")
         if spec.kind == "soft" and not spec.damping >= 0.0:
             raise ValueError(f"body {spec.name!r}: damping must be >= 0, got {spec.damping}")
+        if spec.self_collision and spec.kind != "soft":
+            raise ValueError(f"body {spec.name!r}: self_collision is for soft bodies only, not {spec.kind}")
         if not spec.drag >= 0.0:
             raise ValueError(f"body {spec.name!r}: drag must be >= 0, got {spec.drag}")
         if not spec.spin_friction >= 0.0:
@@ -133,7 +136,8 @@ class ModelBuilder:
             tri_range[k] = (t_off, t_off + len(f))
             bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume,
                                    thickness=mesh_thickness(v, f),
-                                   reach=float(np.linalg.norm(v - com[k], axis=1).max())))
+                                   reach=float(np.linalg.norm(v - com[k], axis=1).max()),
+                                   self_collision=bool(spec.self_collision)))
             v_off += len(v)
             t_off += len(f)
 
@@ -180,7 +184,8 @@ class ModelBuilder:
             vertex_x=x_world,
         )
         if has_soft:
-            data.update(edge_indices=np.concatenate(edges).astype(np.int32),
+            data.update(body_self_collision=np.array([s.self_collision for s in self.specs], np.int32),
+                        edge_indices=np.concatenate(edges).astype(np.int32),
                         edge_rest=np.concatenate(edge_rest).astype(real),
                         vertex_x_prev=x_world, vertex_v=vertex_v.astype(real))
         else:  # one zero row each: only soft bodies have particles of their own

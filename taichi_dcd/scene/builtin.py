@@ -1,6 +1,6 @@
 """The built-in scenes: Erleben's six contact tests (Erleben 2018, "Methodology for
 assessing mesh-based contact point methods"), their variants, a soft drop, two large
-scenes and two of many boxes resting on each other. Each is a scene file shipped in
+scenes, two of many boxes resting on each other and a soft coil that touches itself. Each is a scene file shipped in
 `scene/files/<name>.toml`, the one source of the scene: `taichi-dcd run spikes` reads the
 same file a user could copy and edit. Its first line, `# <name>: <description>`, is what
 `taichi-dcd list` prints.
@@ -27,11 +27,15 @@ ERLEBEN_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in
 LARGE = ["pile", "spike-in-crack-hires"]
 # Many boxes resting on each other (stack, pyramid): listed and run by name, left out of `all`.
 STACKS = ["stack", "pyramid"]
+# Soft bodies touching themselves (self_collision): listed and run by name, left out of `all`.
+SELF_TOUCHING = ["soft-coil"]
+# Every built-in scene, `all` first.
+KNOWN = [*ALL, *LARGE, *STACKS, *SELF_TOUCHING]
 
 
 def scene_path(name: str) -> Path:
     """The shipped file of built-in scene `name`; KeyError for an unknown name."""
-    if name not in ALL and name not in LARGE and name not in STACKS:
+    if name not in KNOWN:
         raise KeyError(name)
     return FILES / f"{name}.toml"
 
@@ -54,7 +58,7 @@ def builtin_scene(name: str) -> SceneConfig:
 
 def scene_config(name: str) -> SceneConfig:
     """A built-in scene's config by name, or a scene file's by path. Raises SceneError."""
-    if name in ALL or name in LARGE or name in STACKS:
+    if name in KNOWN:
         return builtin_scene(name)
     if not name.endswith(".toml") and "/" not in name and not os.path.exists(name):
         raise SceneError(f"unknown scene {name!r}: not a built-in scene (see `taichi-dcd list`) nor a file")

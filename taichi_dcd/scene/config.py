@@ -98,6 +98,8 @@ class BodyConfig:
     damping: float = 0.0
     drag: float = 0.0
     spin_friction: float = 0.0
+    # Soft bodies: the body's own triangles collide with each other (not those sharing a vertex).
+    self_collision: bool = False
 
 
 @dataclass
@@ -116,7 +118,7 @@ _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "para
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg",
               "damping": "nonneg", "drag": "nonneg",
-              "spin_friction": "nonneg"}
+              "spin_friction": "nonneg", "self_collision": "bool"}
 _KINDS = ("rigid", "soft", "static")
 
 
@@ -190,6 +192,9 @@ def scene_from_dict(data: dict, name: str, base_dir: Path = Path("."), where: st
             raise SceneError(f"{where}: {label}: unknown kind {values['kind']!r} (rigid, soft or static)")
         if ("mesh" in values) == ("shape" in values):
             raise SceneError(f"{where}: {label} needs exactly one of 'mesh' or 'shape'")
+        if values.get("self_collision") and values["kind"] != "soft":
+            raise SceneError(f"{where}: {label}: self_collision is for soft bodies only (a {values['kind']} "
+                             "body cannot touch itself)")
         if "params" in values and "shape" not in values:
             raise SceneError(f"{where}: {label}: 'params' is only for a built-in 'shape'")
         if any(b.name == values["name"] for b in bodies):

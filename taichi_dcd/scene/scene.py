@@ -17,6 +17,7 @@ from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from ..core.model import RIGID, SOFT, STATIC
 from ..measure.penetration import body_pairs, scene_penetration
+from ..measure.self_intersection import self_penetration
 from .shapes import make_shape
 from ..solver.tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
 
@@ -76,7 +77,7 @@ class Scene:
                     name=body.name, vertices=mesh.vertices, faces=mesh.faces, kind=body.kind,
                     density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
                     restitution=body.restitution, compliance=body.compliance, damping=body.damping,
-                    drag=body.drag, spin_friction=body.spin_friction,
+                    drag=body.drag, spin_friction=body.spin_friction, self_collision=body.self_collision,
                     source=str(config.base_dir / body.mesh) if body.mesh else None))
             except ValueError as exc:  # SceneError included
                 raise SceneError(f"{config.source}: {exc}") from None
@@ -290,6 +291,13 @@ class Scene:
         `vertices` (V, 3) if the caller already read them."""
         x = self.vertices() if vertices is None else vertices
         return scene_penetration(self._world_bodies(x))
+
+    def self_penetration(self, vertices: np.ndarray | None = None) -> dict[str, tuple[int, float]]:
+        """Each soft body's name → (pairs of its own triangles that cross, the deepest of them
+        in m), measured from its mesh alone (measure.self_intersection.self_penetration)."""
+        x = self.vertices() if vertices is None else vertices
+        return {b.name: self_penetration(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces)
+                for b in self.model.bodies if b.kind == "soft"}
 
     def _world_bodies(self, x: np.ndarray) -> list[tuple[str, str, trimesh.Trimesh]]:
         """(name, kind, mesh at the vertices x (V, 3)) of every body."""

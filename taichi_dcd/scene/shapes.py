@@ -92,6 +92,62 @@ def ground(size=(12.0, 1.0, 12.0)) -> trimesh.Trimesh:
     return mesh
 
 
+def coil(coil_radius: float = 0.5, tube_radius: float = 0.08, pitch: float = 0.3, turns: float = 3.0,
+         sides: int = 8, segments_per_turn: int = 32) -> trimesh.Trimesh:
+    """A tube of radius `tube_radius` wound as a helix about the y axis: `coil_radius` from the
+    axis, rising `pitch` per turn over `turns` turns, its centreline starting `tube_radius`
+    above y = 0. The tube's section is a `sides`-gon, the helix `segments_per_turn` straight
+    pieces a turn, and each end a half-sphere (sides // 4 rings and a pole): a flat end's rim
+    would be a sharp edge for the turns above to catch on. A pitch below twice the tube
+    radius makes the turns cross."""
+    R, r, p = _positive("coil_radius", coil_radius), _positive("tube_radius", tube_radius), _positive("pitch", pitch)
+    turns = _positive("turns", turns)
+    if r >= R:
+        raise ValueError(f"tube_radius ({r}) must be smaller than coil_radius ({R})")
+    sides, per_turn = int(sides), int(segments_per_turn)
+    if sides < 4 or per_turn < 3:
+        raise ValueError("a coil needs at least 4 sides and 3 segments per turn")
+    theta = np.linspace(0.0, 2.0 * np.pi * turns, max(int(round(turns * per_turn)), 1) + 1)
+    centre = np.c_[R * np.cos(theta), r + p * theta / (2.0 * np.pi), R * np.sin(theta)]
+    tangent = np.c_[-R * np.sin(theta), np.full(len(theta), p / (2.0 * np.pi)), R * np.cos(theta)]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    inward = np.c_[-np.cos(theta), np.zeros(len(theta)), -np.sin(theta)]   # towards the axis, across the tangent
+    binormal = np.cross(tangent, inward)
+    # Rings (centre, radius, frame) along the tube, the half-spheres' rings at the ends.
+    cap = np.linspace(0.0, 0.5 * np.pi, sides // 4 + 2)[1:-1]
+    ring_centre, ring_radius, ring_frame = [], [], []
+    for end, sign in ((0, -1.0), (-1, 1.0)):
+        part_c = [centre[end] + sign * r * np.sin(a) * tangent[end] for a in cap]
+        part_r = [r * np.cos(a) for a in cap]
+        if end == 0:
+            part_c, part_r = part_c[::-1], part_r[::-1]
+            ring_centre += part_c + list(centre)
+            ring_radius += part_r + [r] * len(centre)
+            ring_frame += [(inward[0], binormal[0])] * len(cap) + list(zip(inward, binormal))
+        else:
+            ring_centre += part_c
+            ring_radius += part_r
+            ring_frame += [(inward[-1], binormal[-1])] * len(cap)
+    phi = 2.0 * np.pi * np.arange(sides) / sides
+    ring = np.array([c + rr * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * w)
+                     for c, rr, (u, w) in zip(ring_centre, ring_radius, ring_frame)])
+    n_rings = len(ring)
+    v = np.vstack([ring.reshape(-1, 3), centre[0] - r * tangent[0], centre[-1] + r * tangent[-1]])
+    start, end = len(v) - 2, len(v) - 1
+    f = []
+    for i in range(n_rings - 1):
+        for k in range(sides):
+            a, b = i * sides + k, i * sides + (k + 1) % sides
+            f += [(a, b, b + sides), (a, b + sides, a + sides)]
+    last = (n_rings - 1) * sides
+    for k in range(sides):
+        f += [(start, (k + 1) % sides, k), (end, last + k, last + (k + 1) % sides)]
+    mesh = _mesh(v, f)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
 def extrude(outline, length: float) -> trimesh.Trimesh:
     """A prism: the simple polygon `outline` ((x, y) pairs, counter-clockwise, no repeated
     point) extruded along z from −length/2 to length/2; caps by ear clipping, sides as quads."""
@@ -147,7 +203,7 @@ def _mesh(vertices, faces) -> trimesh.Trimesh:
 
 
 SHAPES = {"box": box, "icosphere": icosphere, "spike": spike, "wedge": wedge, "crack_block": crack_block,
-          "hole_block": hole_block, "ground": ground}
+          "hole_block": hole_block, "ground": ground, "coil": coil}
 
 
 def make_shape(name: str, params: dict) -> trimesh.Trimesh:
@@ -155,7 +211,7 @@ def make_shape(name: str, params: dict) -> trimesh.Trimesh:
     if name not in SHAPES:
         raise ValueError(f"unknown shape {name!r} (built-in: {', '.join(SHAPES)})")
     params = dict(params)
-    refine = 0 if name in ("box", "icosphere") else params.pop("subdivisions", 0)
+    refine = 0 if name in ("box", "icosphere", "coil") else params.pop("subdivisions", 0)
     try:
         mesh = SHAPES[name](**params)
     except TypeError as exc:

@@ -167,3 +167,45 @@ def test_skin_reuses_pairs_only_while_they_cover_the_exact_ones(f64):
             built = x.copy()
             assert got == brute_pairs(x, faces, body, static, margin=inflated)
     assert 2 <= grid.rebuilds <= 8 < grid.queries  # reused most of the time
+
+
+def connected_soup(rng, n_bodies: int, strips: int, spread: float):
+    """Bodies that are triangle strips folded at random (neighbours share vertices), so that
+    pairs sharing a vertex are common: vertices (n, 3), faces (m, 3), body (m,)."""
+    xs, faces, body = [], [], []
+    offset = 0
+    for k in range(n_bodies):
+        n = strips + 2
+        path = rng.uniform(-spread, spread, 3) + np.cumsum(rng.normal(0.0, 0.3, (n, 3)), axis=0)
+        xs.append(path)
+        faces.append(np.stack([np.arange(strips), np.arange(1, strips + 1), np.arange(2, strips + 2)], axis=1) + offset)
+        body += [k] * strips
+        offset += n
+    return np.concatenate(xs), np.concatenate(faces), np.array(body)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_self_colliding_bodies_add_their_own_pairs_that_share_no_vertex(f64, seed):
+    """With body_self, a body's own triangle pairs whose boxes overlap are candidates too,
+    except those sharing a vertex, both on the moving table's equal levels and across levels
+    (static bodies never collide with themselves)."""
+    rng = np.random.default_rng(100 + seed)
+    x, faces, body = connected_soup(rng, 5, 60, 1.0)
+    static = body == 4
+    body_self = np.array([True, False, True, True, False])
+    grid = UniformGrid(faces, body, static, body_self=body_self)
+    expected = brute_pairs(x, faces, body, static)
+    tris = x[faces]
+    lo, hi = tris.min(axis=1), tris.max(axis=1)
+    pad = BOX_SLACK * tolerance() * (hi - lo).max(axis=1, keepdims=True)
+    lo, hi = lo - pad, hi + pad
+    own = 0
+    for a in range(len(faces)):
+        for b in range(a + 1, len(faces)):
+            if (body[a] == body[b] and body_self[body[a]] and not set(faces[a]) & set(faces[b])
+                    and (lo[a] <= hi[b]).all() and (lo[b] <= hi[a]).all()):
+                expected.add((a, b))
+                own += 1
+    got = {tuple(sorted(p)) for p in grid_pairs(grid, x)}
+    assert own > 20
+    assert got == expected, f"missing {sorted(expected - got)[:5]}, extra {sorted(got - expected)[:5]}"

@@ -93,6 +93,8 @@ BAD_SCENES = {
     "negative_iterations": (scene_text(sim="iterations = -2"), ["sim.iterations", "positive integer"]),
     "unknown_shape": ('[[body]]\nname = "a"\nkind = "rigid"\nshape = "cone"\n', ["unknown shape 'cone'"]),
     "unknown_kind": ('[[body]]\nname = "a"\nkind = "jelly"\nshape = "spike"\n', ["unknown kind 'jelly'"]),
+    "rigid_self_collision": (scene_text(body_extra="self_collision = true"), ["'thing'", "self_collision",
+                                                                             "soft bodies only"]),
     "duplicate_names": ('[[body]]\nname = "a"\nkind = "rigid"\nshape = "spike"\n'
                         '[[body]]\nname = "a"\nkind = "static"\nshape = "ground"\n', ["duplicate body name 'a'"]),
 }
