@@ -60,7 +60,9 @@ def touching_pair_contact(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
     if ti.static(not sim.rules.touching_pairs):
         which = -1
     if ti.static(sim.rules.pressed_through and sim.model.has_soft):
-        if which < 0 and involves_soft(sim, t_a, t_b):
+        # Not within one body: two walls of a closed body facing each other across its inside
+        # are each wholly behind the other's plane by construction.
+        if which < 0 and involves_soft(sim, t_a, t_b) and sim.model.tri_body[t_a] != sim.model.tri_body[t_b]:
             # A soft patch sagged through a face: the triangle behind the other's plane moves.
             a_behind, b_behind, n_a, n_b, floor = pressed_through(a0, a1, a2, b0, b1, b2)
             which = ti.select(a_behind and not static_a, 0, ti.select(b_behind and not static_b, 1, -1))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..measure.penetration import PASS_FINAL_DEPTH, PASS_FINAL_OVERLAP, PASS_MAX_DEPTH, verdict
+from ..measure.penetration import PASS_FINAL_DEPTH, PASS_FINAL_OVERLAP, PASS_MAX_DEPTH, PASS_MAX_SELF_DEPTH, verdict
 from .render import last_frame
 
 PLOTS = "plots.png"
@@ -21,7 +21,8 @@ INDEX = "index.html"
 
 def plot_run(columns: dict[str, np.ndarray], path: Path, title: str, length_scale: float = 1.0) -> None:
     """Write plots.png: four panels against time (s): penetration depth (m) with the limits on
-    the deepest and the final depth, overlap volume (m³) with its final limit, kinetic energy
+    the deepest and the final depth (with soft bodies also their deepest crossing of themselves,
+    dotted: its limit), overlap volume (m³) with its final limit, kinetic energy
     (J) and contact rows. Depths, volumes and energies on log axes (zeros and non-finite
     values are left out: a run without any overlap shows an empty panel with its limits).
     Written to a temporary name and renamed."""
@@ -57,6 +58,17 @@ def plot_run(columns: dict[str, np.ndarray], path: Path, title: str, length_scal
             ax.set_ylim(min(floor) / 10.0, max(floor) * 10.0)
         ax.set_ylabel(label)
         ax.grid(True, which="major", alpha=0.3)
+    if "self_penetration_depth" in columns:
+        # A soft body's crossings of itself, beside the depth between bodies.
+        ax = axes[0, 0]
+        y = columns["self_penetration_depth"]
+        shown = np.isfinite(y) & (y > 0.0)
+        ax.plot(t[shown], y[shown], ".-", ms=2, lw=1, color="tab:orange", label="soft body through itself")
+        ax.axhline(PASS_MAX_SELF_DEPTH * length_scale, color="tab:orange", ls=":", lw=1)
+        if shown.any():
+            low, high = ax.get_ylim()
+            ax.set_ylim(min(low, y[shown].min() / 10.0), max(high, y[shown].max() * 10.0))
+        ax.legend(loc="lower right", fontsize=8)
     ax = axes[1, 1]
     ax.step(t, columns["contact_count"], where="post", lw=1, color="tab:green")
     ax.set_ylabel("contact rows")

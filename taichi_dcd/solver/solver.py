@@ -107,9 +107,8 @@ class XPBDSolver:
                           for b in range(a + 1, m.n_bodies) if moving[a] or moving[b])
         if broad_phase not in ("auto", "brute", "grid"):
             raise ValueError(f"unknown broad_phase {broad_phase!r}: auto, brute or grid")
-        # A body's own pairs (self_collision) do not count here: the 1,616-triangle soft-coil
-        # went 5 cm through itself on the grid path, 0.8 mm at most on this one (experiments.md).
         body_self = np.array([b.self_collision for b in m.bodies], bool)
+        pairs_upper += sum(int(tri_counts[b]) * (int(tri_counts[b]) - 1) // 2 for b in np.flatnonzero(body_self))
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
