@@ -1,0 +1,40 @@
+"""The built-in stacks at rest (slow suite): what `stack` and `pyramid` reach today, held as
+regression limits. Neither meets the target of issue 34 yet (each box within 1e-5 m of its
+place, overlap at most 1e-9 m³): the ten-box stack creeps 1.3 mm while it settles, and both end
+a few µm deep (about one substep's fall under gravity). benchmarks/stacks.py prints the same
+figures with the wall time."""
+
+import numpy as np
+import pytest
+
+from taichi_dcd.scene.builtin import builtin_scene
+from taichi_dcd.scene.scene import Scene
+
+GAP, ROW_HEIGHT = 1e-5, 0.2  # m: the gap the files leave under each row, the boxes' height
+
+
+def rest_after(name: str, seconds: float = 3.0):
+    """(farthest a box vertex ends from where it should rest, m; penetration; sleeping bodies)."""
+    scene = Scene(builtin_scene(name))
+    start = scene.vertices()
+    places = start.copy()
+    for body in scene.model.bodies:
+        if body.kind == "rigid":
+            span = slice(body.vertex_start, body.vertex_start + body.vertex_count)
+            rows = round((start[span, 1].min() - GAP) / ROW_HEIGHT)
+            places[span, 1] -= GAP * (rows + 1)
+    scene.step(int(round(seconds / scene.config.sim.frame_dt)))
+    x = scene.vertices()
+    return float(np.abs(x - places).max()), scene.penetration(x), scene.sleeping_bodies()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, off_place, depth, volume", [
+    ("stack", 2e-3, 2e-5, 1e-6),      # today: 1.3e-3 m, 9.3e-6 m, 3.7e-7 m³
+    ("pyramid", 1e-4, 1e-5, 1e-7),    # today: 4.8e-5 m, 3.1e-6 m, 2.8e-8 m³
+])
+def test_stacks_come_to_rest_near_their_places_and_sleep(f64_scene, name, off_place, depth, volume):
+    moved, pen, asleep = rest_after(name)
+    assert moved <= off_place
+    assert pen.depth <= depth and pen.volume <= volume
+    assert len(asleep) == len(builtin_scene(name).bodies) - 1  # every box asleep after 3 s
