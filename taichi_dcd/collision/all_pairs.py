@@ -4,7 +4,8 @@
 
 import taichi as ti
 
-from ..collision.broadphase import BOX_SLACK, boxes_overlap
+from ..collision.broadphase import BOX_SLACK
+from ..collision.grid_cells import boxes_overlap
 from ..core import runtime
 from ..core.geometry import shares_vertex
 from ..contact.sleeping import is_moving
