@@ -30,7 +30,7 @@ def wake(sim: ti.template(), b: ti.i32):
 
 @ti.func
 def wake_if_touched(sim: ti.template(), b_a: ti.i32, b_b: ti.i32):
-    """Of two bodies whose boxes meet, wake the sleeping one if the other is moving."""
+    """Of two bodies near each other (wake_near), wake the sleeping one if the other is moving."""
     if sim.body_asleep[b_a] == 1 and is_moving(sim, b_b):
         wake(sim, b_a)
     elif sim.body_asleep[b_b] == 1 and is_moving(sim, b_a):

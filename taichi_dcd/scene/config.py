@@ -192,9 +192,6 @@ def scene_from_dict(data: dict, name: str, base_dir: Path = Path("."), where: st
             raise SceneError(f"{where}: {label}: unknown kind {values['kind']!r} (rigid, soft or static)")
         if ("mesh" in values) == ("shape" in values):
             raise SceneError(f"{where}: {label} needs exactly one of 'mesh' or 'shape'")
-        if values.get("self_collision") and values["kind"] != "soft":
-            raise SceneError(f"{where}: {label}: self_collision is for soft bodies only (a {values['kind']} "
-                             "body cannot touch itself)")
         if "params" in values and "shape" not in values:
             raise SceneError(f"{where}: {label}: 'params' is only for a built-in 'shape'")
         if any(b.name == values["name"] for b in bodies):
