@@ -252,7 +252,7 @@ def _run_all_in_processes(names, args, root, jobs: int) -> dict:
     from .scene.builtin import scene_config
 
     configs = {name: scene_config(name) for name in names}
-    plans = plan_workers([(name, c.sim.frames, any(b.kind == "soft" for b in c.bodies))
+    plans = plan_workers([(name, c.sim.frames, any(b.kind in ("soft", "cloth") for b in c.bodies))
                           for name, c in configs.items()], jobs)
     if not args.quiet:
         print(f"taichi-dcd: running {len(names)} scenes in {len(plans)} processes (--jobs)", file=sys.stderr)

@@ -6,6 +6,7 @@ import taichi as ti
 
 from ..collision.narrowphase import collide_triangle_pair
 from ..core.model import STATIC
+from .cloth import pair_vertices
 from .anchors import approach, involves_soft, longest_edge, target_inside
 from .exits import edge_edge_normal, nearest_exit
 from .rows import forget_rows, is_duplicate, write_contact
@@ -32,10 +33,8 @@ def collide_candidates(sim: ti.template(), rows: ti.template(), n_candidates: ti
     n = 0
     for k in range(n_candidates):
         ab = ivec2(rows.tri[k][0], rows.tri[k][1])
-        ia, ib = sim.model.tri_indices[ab[0]], sim.model.tri_indices[ab[1]]
-        hit, depth, normal, side, point = collide_triangle_pair(
-            sim.state.vertex_x[ia[0]], sim.state.vertex_x[ia[1]], sim.state.vertex_x[ia[2]],
-            sim.state.vertex_x[ib[0]], sim.state.vertex_x[ib[1]], sim.state.vertex_x[ib[2]])
+        a0, a1, a2, b0, b1, b2 = pair_vertices(sim, ab[0], ab[1])
+        hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
         n = add_pair_contact(sim, rows, n, ab, side, depth, normal, point, max_push)
     return n
 

@@ -4,6 +4,7 @@ convex edges under a soft triangle."""
 import taichi as ti
 
 from ..core.model import SOFT
+from .cloth import facing_against, is_cloth
 from .rows import is_duplicate, write_contact
 from .vertex_rows import vertex_over_face
 
@@ -86,7 +87,13 @@ def add_sharp_edge_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, 
                     if sim.model.body_kind[b] != SOFT:
                         for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                             if sim.tri_sharp_edges[t] != 0 and sim.model.tri_hidden[t] == 0:
-                                n_rows = edge_under_soft_triangle(sim, rows, n_rows, t_s, t, n_s, lo, hi, skin,
+                                n_face = n_s
+                                if is_cloth(sim, t_s):
+                                    io = sim.model.tri_indices[t]
+                                    q0 = sim.state.vertex_x[io[0]]
+                                    n_t = (sim.state.vertex_x[io[1]] - q0).cross(sim.state.vertex_x[io[2]] - q0)
+                                    n_face = facing_against(sim, t_s, n_s, n_t)
+                                n_rows = edge_under_soft_triangle(sim, rows, n_rows, t_s, t, n_face, lo, hi, skin,
                                                                   max_push)
     return n_rows
 

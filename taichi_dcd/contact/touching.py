@@ -9,6 +9,7 @@ from ..core import runtime
 from ..core.geometry import barycentric
 from ..core.model import STATIC
 from .anchors import involves_soft
+from .cloth import pair_vertices
 from .rows import is_duplicate
 
 vec3 = ti.math.vec3
@@ -43,9 +44,7 @@ def touching_pair_contact(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
     With a soft body, failing that, a pair pressed through each other (a soft patch
     sagged wholly behind a face, narrowphase.pressed_through) gives the same contact
     for the triangle behind the other's plane."""
-    ia, ib = sim.model.tri_indices[t_a], sim.model.tri_indices[t_b]
-    a0, a1, a2 = sim.state.vertex_x[ia[0]], sim.state.vertex_x[ia[1]], sim.state.vertex_x[ia[2]]
-    b0, b1, b2 = sim.state.vertex_x[ib[0]], sim.state.vertex_x[ib[1]], sim.state.vertex_x[ib[2]]
+    a0, a1, a2, b0, b1, b2 = pair_vertices(sim, t_a, t_b)
     tol = ti.static(runtime.tolerance())
     t_m, t_o = t_a, t_b
     depth = 0.0

@@ -7,6 +7,7 @@ from ..core import runtime
 from ..core.geometry import barycentric
 from ..core.model import SOFT
 from .anchors import anchor_world
+from .cloth import facing_against
 from .rows import is_duplicate, write_contact
 
 vec3 = ti.math.vec3
@@ -75,7 +76,7 @@ def add_vertex_contacts(sim: ti.template(), rows: ti.template(), n: ti.i32, max_
                 m0, m1, m2 = sim.state.vertex_x[im[0]], sim.state.vertex_x[im[1]], sim.state.vertex_x[im[2]]
                 cross_m = (m1 - m0).cross(m2 - m0)
                 if cross_m.norm() > 0.0:
-                    n_m = cross_m.normalized()
+                    n_m = facing_against(sim, tri[0], cross_m.normalized(), normal)
                     for k in ti.static(range(3)):
                         total = vertex_over_face(sim, rows, total, tri[1], tri[0], sim.state.vertex_x[io[k]], n_m, 0.0,
                                                  0.5 * sim.body_thickness[b_m], max_push)

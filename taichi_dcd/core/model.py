@@ -21,7 +21,10 @@ from . import runtime
 STATIC = 0
 RIGID = 1
 SOFT = 2
-KIND_NAMES = {"static": STATIC, "rigid": RIGID, "soft": SOFT}
+# A cloth is a soft body (its vertices are particles) with an open surface: no volume, bending
+# pairs among its edges, and faces that are two-sided in contact (contact.cloth).
+KIND_NAMES = {"static": STATIC, "rigid": RIGID, "soft": SOFT, "cloth": SOFT}
+DEFORMABLE_KINDS = ("soft", "cloth")
 
 
 @dataclass
@@ -41,6 +44,11 @@ class BodyInfo:
     reach: float = 0.0               # m, largest distance of a vertex from the centre of mass
     self_collision: bool = False     # a soft body whose own triangles collide
 
+    @property
+    def deformable(self) -> bool:
+        """Whether its vertices are particles of their own (kind soft or cloth)."""
+        return self.kind in DEFORMABLE_KINDS
+
 
 @dataclass
 class Model:
@@ -58,8 +66,9 @@ class Model:
     vertex_inv_mass (V,) 1/kg (soft particles, else 0). tri_indices (T,) ivec3 global vertex
     indices; tri_body (T,) i32; tri_hidden (T,) i32 1 for a static face hidden against another
     static body's (contact/hidden_faces.py: never in contact). With soft bodies only:
-    body_self_collision (B,) i32 1 where a soft body's own triangles collide; edge_indices (E,)
-    ivec2; edge_rest (E,) m.
+    body_self_collision (B,) i32 1 where a soft body's own triangles collide; body_cloth (B,) i32
+    1 for a cloth (no volume, two-sided faces); edge_indices (E,) ivec2; edge_rest (E,) m;
+    edge_compliance (E,) m/N (a cloth's bending pairs are edges too, with their own compliance).
     """
 
     bodies: list[BodyInfo]
@@ -93,13 +102,20 @@ class Model:
     tri_body: ti.Field
     tri_hidden: ti.Field
     body_self_collision: ti.Field | None = None
+    body_cloth: ti.Field | None = None
     edge_indices: ti.Field | None = None
     edge_rest: ti.Field | None = None
+    edge_compliance: ti.Field | None = None
+    has_cloth: bool = False
     tri_indices_np: np.ndarray = field(default=None, repr=False)
     tri_body_np: np.ndarray = field(default=None, repr=False)
     tri_hidden_np: np.ndarray = field(default=None, repr=False)
     body_kind_np: np.ndarray = field(default=None, repr=False)  # a copy of body_kind, read every frame
     field_set: object = field(default=None, repr=False)  # the pool's set holding these fields
+
+    def tri_cloth_np(self) -> np.ndarray:
+        """(T,) bool: the triangles of cloth bodies."""
+        return np.repeat([b.kind == "cloth" for b in self.bodies], [b.tri_count for b in self.bodies])
 
     def body_index(self, name: str) -> int:
         for k, b in enumerate(self.bodies):
@@ -134,7 +150,8 @@ MODEL_FIELD_NAMES = ("body_count", "vertex_count", "tri_count", "edge_count", "b
                      "body_inertia", "body_inv_inertia", "body_force", "body_friction", "body_restitution",
                      "body_vertex_range", "body_tri_range", "body_compliance", "body_damping", "body_drag",
                      "body_spin_friction", "body_rest_volume", "vertex_body", "vertex_local", "vertex_inv_mass",
-                     "tri_indices", "tri_body", "tri_hidden", "body_self_collision", "edge_indices", "edge_rest")
+                     "tri_indices", "tri_body", "tri_hidden", "body_self_collision", "body_cloth", "edge_indices",
+                     "edge_rest", "edge_compliance")
 STATE_FIELD_NAMES = ("body_x", "body_q", "body_v", "body_w", "body_x_prev", "body_q_prev", "vertex_x",
                      "vertex_x_prev", "vertex_v")
 
@@ -158,8 +175,10 @@ def model_fields(rows: dict[str, int], has_soft: bool) -> dict:
             vertex_body=scalar_field(v, i32), vertex_local=vec_field(v), vertex_inv_mass=scalar_field(v),
             tri_indices=vec_field(t, 3, i32), tri_body=scalar_field(t, i32), tri_hidden=scalar_field(t, i32),
             body_self_collision=scalar_field(b, i32) if has_soft else None,
+            body_cloth=scalar_field(b, i32) if has_soft else None,
             edge_indices=vec_field(e, 2, i32) if has_soft else None,
             edge_rest=scalar_field(e) if has_soft else None,
+            edge_compliance=scalar_field(e) if has_soft else None,
             body_x=vec_field(b), body_q=vec_field(b, 4), body_v=vec_field(b), body_w=vec_field(b),
             body_x_prev=vec_field(b), body_q_prev=vec_field(b, 4), vertex_x=vec_field(v),
             vertex_x_prev=vec_field(particles), vertex_v=vec_field(particles),

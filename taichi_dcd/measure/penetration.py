@@ -242,13 +242,19 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
 
 def body_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]]):
     """(name_a, name_b, depth m, overlap volume m³) for every pair of bodies (name, kind, world
-    mesh) that are not both static, in order (pair_penetration)."""
+    mesh) that are not both static, in order (pair_penetration; with a cloth,
+    cloth.cloth_pair_depth and no volume: a sheet has none)."""
     for i in range(len(bodies)):
         for j in range(i + 1, len(bodies)):
             (name_a, kind_a, a), (name_b, kind_b, b) = bodies[i], bodies[j]
             if kind_a == "static" and kind_b == "static":
                 continue
-            depth, volume = pair_penetration(a, b)
+            if "cloth" in (kind_a, kind_b):
+                from .cloth import cloth_pair_depth  # (it builds on this module)
+
+                depth, volume = (0.0 if boxes_apart(a, b) else cloth_pair_depth(a, kind_a, b, kind_b)), 0.0
+            else:
+                depth, volume = pair_penetration(a, b)
             yield name_a, name_b, depth, volume
 
 

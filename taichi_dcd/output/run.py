@@ -226,7 +226,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     has_soft = scene.model.has_soft
     columns = CSV_COLUMNS + (SELF_COLUMNS if has_soft else [])
     self_measure = {b.name: {"self_collision": b.self_collision, "final_pairs": 0, "max_depth": 0.0}
-                    for b in scene.model.bodies if b.kind == "soft"}
+                    for b in scene.model.bodies if b.deformable}
     measured_pairs = apart_pairs = 0
     step_times = []             # wall time of each frame's simulation alone
     start = time.perf_counter()

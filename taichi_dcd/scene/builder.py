@@ -16,8 +16,8 @@ import trimesh
 
 from ..core import pool, runtime
 from ..contact.hidden_faces import hidden_static_faces
-from ..core.model import (KIND_NAMES, MODEL_FIELD_NAMES, RIGID, SOFT, STATE_FIELD_NAMES, STATIC, BodyInfo, Model,
-                          State, model_fields)
+from ..core.model import (DEFORMABLE_KINDS, KIND_NAMES, MODEL_FIELD_NAMES, RIGID, SOFT, STATE_FIELD_NAMES, STATIC,
+                          BodyInfo, Model, State, model_fields)
 from ..solver.tunnelling import mesh_thickness
 from .mesh_check import checked_mesh
 
@@ -27,14 +27,15 @@ DEFAULT_SOFT_COMPLIANCE = 1e-7  # m/N: edge compliance of a soft body
 @dataclass
 class BodySpec:
     """One body before building. vertices (n, 3) m in world space, faces (m, 3) int;
-    kind "rigid" | "soft" | "static"; density kg/m³; velocity m/s; force N (constant,
-    at the centre of mass); friction (Coulomb μ, static and dynamic); restitution in [0, 1];
-    compliance m/N (soft bodies' edges); damping 1/s, the rate at which a soft body's
+    kind "rigid" | "soft" | "cloth" | "static"; density kg/m³ (a cloth: kg/m² of sheet);
+    velocity m/s; force N (constant, at the centre of mass); friction (Coulomb μ, static and
+    dynamic); restitution in [0, 1]; compliance m/N (soft bodies' edges); damping 1/s, the rate at which a soft body's
     particles lose their velocity relative to the body's rigid motion (0: none); drag 1/s,
     the rate at which every point of a moving body loses its velocity (velocity damping,
     standing in for the dissipation that point contacts lack; 0: none); spin_friction m, the
     largest torque about a contact's normal per newton of its normal force (a contact patch's
-    radius times μ; point contacts have none; 0: none)."""
+    radius times μ; point contacts have none; 0: none); bending m/N, a cloth's bending
+    compliance (the pairs of vertices across each inner edge keep their distance with it)."""
 
     name: str
     vertices: np.ndarray
@@ -50,7 +51,35 @@ class BodySpec:
     drag: float = 0.0
     spin_friction: float = 0.0
     self_collision: bool = False  # soft bodies: its own triangles collide (those sharing no vertex)
+    bending: float = 0.0
     source: str | None = None  # the mesh file, named in error messages
+
+
+def bending_pairs(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(k, 2) the two vertices opposite each inner edge of a sheet (the hinge's tips): the
+    distance between them shrinks as the two faces fold about the edge, so keeping it is a
+    bending constraint (Müller et al. 2007 use the dihedral angle; a distance is cheaper, the
+    same near flat, and cannot flip sign)."""
+    pairs = np.asarray(mesh.face_adjacency, np.int64)
+    if len(pairs) == 0:
+        return np.zeros((0, 2), np.int64)
+    faces = np.asarray(mesh.faces, np.int64)
+    shared = np.sort(np.asarray(mesh.face_adjacency_edges, np.int64), axis=1)
+
+    def tip(f):
+        rows = faces[f]
+        alone = (rows != shared[:, :1]) & (rows != shared[:, 1:])
+        return rows[np.arange(len(rows)), np.argmax(alone, axis=1)]
+
+    return np.column_stack([tip(pairs[:, 0]), tip(pairs[:, 1])])
+
+
+def sheet_spacing(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """A cloth's stand-in for thickness (m): its mean edge length. A sheet has no wall to
+    cross; what discrete detection cannot miss is a crossing that leaves a triangle pair
+    intersecting, so a substep may move it by at most a fraction of its mesh's spacing."""
+    tris = vertices[faces]
+    return float(np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).mean())
 
 
 class ModelBuilder:
@@ -64,17 +93,19 @@ class ModelBuilder:
     def add_body(self, spec: BodySpec) -> int:
         """Check and add a body; returns its index. Raises ValueError naming the body."""
         if spec.kind not in KIND_NAMES:
-            raise ValueError(f"body {spec.name!r}: unknown kind {spec.kind!r} (rigid, soft or static)")
+            raise ValueError(f"body {spec.name!r}: unknown kind {spec.kind!r} (rigid, soft, cloth or static)")
         if any(s.name == spec.name for s in self.specs):
             raise ValueError(f"body {spec.name!r}: duplicate body name")
         if spec.kind != "static" and not spec.density > 0.0:
             raise ValueError(f"body {spec.name!r}: density must be positive, got {spec.density}")
-        if spec.kind == "soft" and not spec.compliance >= 0.0:
+        if spec.kind in DEFORMABLE_KINDS and not spec.compliance >= 0.0:
             raise ValueError(f"body {spec.name!r}: compliance must be >= 0, got {spec.compliance}")
-        if spec.kind == "soft" and not spec.damping >= 0.0:
+        if spec.kind in DEFORMABLE_KINDS and not spec.damping >= 0.0:
             raise ValueError(f"body {spec.name!r}: damping must be >= 0, got {spec.damping}")
-        if spec.self_collision and spec.kind != "soft":
-            raise ValueError(f"body {spec.name!r}: self_collision is for soft bodies only, not {spec.kind}")
+        if spec.kind == "cloth" and not spec.bending >= 0.0:
+            raise ValueError(f"body {spec.name!r}: bending must be >= 0, got {spec.bending}")
+        if spec.self_collision and spec.kind not in DEFORMABLE_KINDS:
+            raise ValueError(f"body {spec.name!r}: self_collision is for soft bodies and cloth only, not {spec.kind}")
         if not spec.drag >= 0.0:
             raise ValueError(f"body {spec.name!r}: drag must be >= 0, got {spec.drag}")
         if not spec.spin_friction >= 0.0:
@@ -98,7 +129,7 @@ class ModelBuilder:
         inv_inertia = np.zeros((n_b, 3, 3))
         com = np.zeros((n_b, 3))
         vertex_local, vertex_world, vertex_body, vertex_inv_mass, tris, tri_body = [], [], [], [], [], []
-        edges, edge_rest = [], []
+        edges, edge_rest, edge_compliance = [], [], []
         vertex_range = np.zeros((n_b, 2), np.int32)
         tri_range = np.zeros((n_b, 2), np.int32)
         rest_volume = np.zeros(n_b)
@@ -107,8 +138,9 @@ class ModelBuilder:
         for k, (spec, mesh) in enumerate(zip(self.specs, self.meshes)):
             v = np.asarray(mesh.vertices, np.float64)
             f = np.asarray(mesh.faces, np.int64)
-            volume = float(mesh.volume)
-            mass = spec.density * volume
+            cloth = spec.kind == "cloth"
+            volume = 0.0 if cloth else float(mesh.volume)
+            mass = spec.density * (float(mesh.area) if cloth else volume)
             rest_volume[k] = volume
             if kind[k] == RIGID:
                 props = mesh.mass_properties  # unit density: scale mass and inertia by density
@@ -119,12 +151,18 @@ class ModelBuilder:
             elif kind[k] == STATIC:
                 com[k] = v.mean(axis=0)
                 mass = float("inf")
-            else:  # soft: equal particle masses, centre = vertex mean
+            else:  # soft or cloth: equal particle masses, centre = vertex mean
                 com[k] = v.mean(axis=0)
                 vertex_inv_mass.append(np.full(len(v), len(v) / mass))
                 e = np.asarray(mesh.edges_unique, np.int64)
+                compliance = np.full(len(e), spec.compliance)
+                if cloth:
+                    hinges = bending_pairs(mesh)
+                    e = np.concatenate([e, hinges])
+                    compliance = np.concatenate([compliance, np.full(len(hinges), spec.bending)])
                 edges.append(e + v_off)
                 edge_rest.append(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1))
+                edge_compliance.append(compliance)
             if kind[k] != SOFT:
                 vertex_inv_mass.append(np.zeros(len(v)))
             vertex_local.append(v - com[k])
@@ -135,13 +173,14 @@ class ModelBuilder:
             vertex_range[k] = (v_off, v_off + len(v))
             tri_range[k] = (t_off, t_off + len(f))
             bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume,
-                                   thickness=mesh_thickness(v, f),
+                                   thickness=sheet_spacing(v, f) if cloth else mesh_thickness(v, f),
                                    reach=float(np.linalg.norm(v - com[k], axis=1).max()),
                                    self_collision=bool(spec.self_collision)))
             v_off += len(v)
             t_off += len(f)
 
         has_soft = bool((kind == SOFT).any())
+        cloth_flags = np.array([s.kind == "cloth" for s in self.specs], np.int32)
         n_v, n_t = v_off, t_off
         tri_hidden = np.concatenate(hidden_static_faces(
             [(w, b.faces) for w, b in zip(vertex_world, bodies)], [k == STATIC for k in kind])).astype(np.int32)
@@ -187,12 +226,15 @@ class ModelBuilder:
             data.update(body_self_collision=np.array([s.self_collision for s in self.specs], np.int32),
                         edge_indices=np.concatenate(edges).astype(np.int32),
                         edge_rest=np.concatenate(edge_rest).astype(real),
+                        edge_compliance=np.concatenate(edge_compliance).astype(real),
+                        body_cloth=cloth_flags,
                         vertex_x_prev=x_world, vertex_v=vertex_v.astype(real))
         else:  # one zero row each: only soft bodies have particles of their own
             data.update(vertex_x_prev=x_world[:0], vertex_v=x_world[:0])
 
         counts = {"bodies": n_b, "vertices": n_v, "tris": n_t, "edges": n_e}
-        field_set = pool.acquire(("model", has_soft), counts, lambda rows: model_fields(rows, has_soft))
+        field_set = pool.acquire(("model", has_soft, bool(cloth_flags.any())), counts,
+                                 lambda rows: model_fields(rows, has_soft))
         try:
             for name, fld in field_set.fields.items():
                 if fld is not None:
@@ -201,7 +243,8 @@ class ModelBuilder:
             m = Model(bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
                       **{name: f[name] for name in MODEL_FIELD_NAMES},
                       tri_indices_np=data["tri_indices"], tri_body_np=data["tri_body"],
-                      tri_hidden_np=tri_hidden.astype(bool), body_kind_np=kind.copy(), field_set=field_set)
+                      tri_hidden_np=tri_hidden.astype(bool), body_kind_np=kind.copy(), field_set=field_set,
+                      has_cloth=bool(cloth_flags.any()))
             s = State(**{name: f[name] for name in STATE_FIELD_NAMES})
         except BaseException:
             pool.give_back(field_set)

@@ -91,7 +91,7 @@ class BodyConfig:
     scale: float = 1.0
     velocity: tuple = (0.0, 0.0, 0.0)
     force: tuple = (0.0, 0.0, 0.0)
-    density: float = 1000.0
+    density: float = 1000.0  # kg/m³; for a cloth kg/m² of sheet (scene files: CLOTH_DENSITY)
     friction: float = 0.5
     restitution: float = 0.0
     compliance: float = 1e-7
@@ -100,6 +100,7 @@ class BodyConfig:
     spin_friction: float = 0.0
     # Soft bodies: the body's own triangles collide with each other (not those sharing a vertex).
     self_collision: bool = False
+    bending: float = 0.0  # m/N, a cloth's bending compliance (scene files: CLOTH_BENDING)
 
 
 @dataclass
@@ -118,8 +119,12 @@ _BODY_KEYS = {"name": "str", "kind": "str", "mesh": "str", "shape": "str", "para
               "position": "vec3", "rotation": "vec3", "scale": "positive", "velocity": "vec3", "force": "vec3",
               "density": "positive", "friction": "nonneg", "restitution": "unit", "compliance": "nonneg",
               "damping": "nonneg", "drag": "nonneg",
-              "spin_friction": "nonneg", "self_collision": "bool"}
-_KINDS = ("rigid", "soft", "static")
+              "spin_friction": "nonneg", "self_collision": "bool", "bending": "nonneg"}
+_KINDS = ("rigid", "soft", "static", "cloth")
+# A cloth's defaults: a mid-weight woven fabric (kg/m²), and a bending compliance (m/N) soft
+# enough to drape yet stiff enough that a sheet does not crumple under its own weight.
+CLOTH_DENSITY = 0.2
+CLOTH_BENDING = 1.0
 
 
 def _number(x) -> bool:
@@ -189,11 +194,16 @@ def scene_from_dict(data: dict, name: str, base_dir: Path = Path("."), where: st
         values = {key: _check(where, f"{label}.{key}", value, _BODY_KEYS[key]) for key, value in entry.items()}
         label = f"body {values['name']!r}"
         if values["kind"] not in _KINDS:
-            raise SceneError(f"{where}: {label}: unknown kind {values['kind']!r} (rigid, soft or static)")
+            raise SceneError(f"{where}: {label}: unknown kind {values['kind']!r} (rigid, soft, cloth or static)")
         if ("mesh" in values) == ("shape" in values):
             raise SceneError(f"{where}: {label} needs exactly one of 'mesh' or 'shape'")
         if "params" in values and "shape" not in values:
             raise SceneError(f"{where}: {label}: 'params' is only for a built-in 'shape'")
+        if "bending" in values and values["kind"] != "cloth":
+            raise SceneError(f"{where}: {label}: 'bending' is for a cloth only, not a {values['kind']} body")
+        if values["kind"] == "cloth":
+            values.setdefault("density", CLOTH_DENSITY)
+            values.setdefault("bending", CLOTH_BENDING)
         if any(b.name == values["name"] for b in bodies):
             raise SceneError(f"{where}: duplicate body name {values['name']!r}")
         bodies.append(BodyConfig(**values))
@@ -220,8 +230,8 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
     """A copy of the scene with every length multiplied by `factor` and every time by
     √factor, so that under the same gravity the motion is the same motion, L times larger:
     positions and meshes ×L, velocities and frame_dt ×√L, forces ×L³ (masses grow as L³),
-    soft compliance ×L⁻² (the same strain under L³ times the load), damping and drag rates
-    ×L^-1/2, spin friction and length_scale ×L."""
+    a cloth's density (kg/m²) ×L, soft compliance and bending ×L⁻² (the same strain under L³
+    times the load), damping and drag rates ×L^-1/2, spin friction and length_scale ×L."""
     import copy
 
     if not (math.isfinite(factor) and factor > 0):
@@ -238,7 +248,10 @@ def scale_scene(config: SceneConfig, factor: float) -> SceneConfig:
         body.position = tuple(factor * x for x in body.position)
         body.velocity = tuple(root * v for v in body.velocity)
         body.force = tuple(factor ** 3 * f for f in body.force)
+        if body.kind == "cloth":
+            body.density *= factor  # kg/m²: the mass grows as L³ as the others do
         body.compliance /= factor ** 2
+        body.bending /= factor ** 2
         body.damping /= root
         body.drag /= root
         body.spin_friction *= factor

@@ -14,6 +14,7 @@ SELF_INTERSECTION_EFFECT = {
     "rigid": "its mass and inertia count the overlap twice",
     "soft": "its volume constraint keeps the overlap counted twice",
     "static": "its faces inside its own solid can take contacts",
+    "cloth": "it starts tangled: the crossing pairs stay crossed",
 }
 
 
@@ -28,7 +29,8 @@ def checked_mesh(name: str, vertices, faces, source: str | None = None, kind: st
     Raises a one-line ValueError naming the body (and `source`, its file) for: non-numeric or
     non-finite coordinates, face indices out of range, an empty mesh, zero-area faces, a mesh
     that is not closed or not manifold (the edge named), or winding that cannot be made
-    consistent."""
+    consistent. A cloth's mesh may be open (boundary edges) and is not turned outward: it has
+    no inside."""
     label = f"body {name!r}" + (f" ({source})" if source else "")
     try:
         v = np.asarray(vertices, dtype=np.float64)
@@ -56,14 +58,18 @@ def checked_mesh(name: str, vertices, faces, source: str | None = None, kind: st
     zero = np.flatnonzero(area <= 1e-300)
     if len(zero):
         raise ValueError(f"{label}: face {zero[0]} has zero area ({len(zero)} such face{'s' if len(zero) > 1 else ''})")
-    if not mesh.is_watertight:
+    if kind == "cloth":
+        crowded = edge_defect(mesh, v, open_allowed=True)
+        if crowded:
+            raise ValueError(f"{label}: {crowded}")
+    elif not mesh.is_watertight:
         raise ValueError(f"{label}: {edge_defect(mesh, v)}")
     if not mesh.is_winding_consistent:
         mesh = trimesh.Trimesh(mesh.vertices, consistent_winding(mesh), process=False)
         if not mesh.is_winding_consistent:
             raise ValueError(f"{label}: mesh winding is inconsistent and could not be repaired")
         warnings.append(f"{label}: made the faces' winding consistent")
-    if not mesh.volume > 0.0:
+    if kind != "cloth" and not mesh.volume > 0.0:
         mesh.invert()
         warnings.append(f"{label}: the mesh was oriented inward; turned it outward")
     crossing = self_intersection_warning(mesh, kind, source) if crossings else None
@@ -72,10 +78,11 @@ def checked_mesh(name: str, vertices, faces, source: str | None = None, kind: st
     return mesh, warnings
 
 
-def edge_defect(mesh: trimesh.Trimesh, given_vertices: np.ndarray) -> str:
+def edge_defect(mesh: trimesh.Trimesh, given_vertices: np.ndarray, open_allowed: bool = False) -> str | None:
     """Why a mesh whose edges are not each shared by exactly two faces is not a solid's
-    surface, naming one such edge by its vertices' indices in `given_vertices` (the mesh's
-    vertices as the user gave them, counting from 0) and their coordinates."""
+    surface (with open_allowed, not a sheet: only edges shared by more than two faces count;
+    None if there is none), naming one such edge by its vertices' indices in `given_vertices`
+    (the mesh's vertices as the user gave them, counting from 0) and their coordinates."""
     edges = np.asarray(mesh.edges_sorted)
     groups = trimesh.grouping.group_rows(edges)
     counts = np.array([len(g) for g in groups])
@@ -91,6 +98,10 @@ def edge_defect(mesh: trimesh.Trimesh, given_vertices: np.ndarray) -> str:
         (i, p), (j, q) = sorted(ends, key=lambda e: e[0])
         return f"the edge between vertices {i} and {j} (at {_point(p)} and {_point(q)} in the scene)"
 
+    if open_allowed:
+        if not crowded:
+            return None
+        open_edges = []
     if open_edges:
         return (f"mesh is not closed ({len(open_edges)} boundary edge{'s' if len(open_edges) > 1 else ''}, "
                 f"e.g. {named(open_edges[0])} belongs to one face only)")

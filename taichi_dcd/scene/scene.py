@@ -17,6 +17,7 @@ from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from ..core.model import RIGID, SOFT, STATIC
 from ..measure.penetration import body_pairs, scene_penetration
+from ..measure.cloth import sheet_self_penetration
 from ..measure.self_intersection import self_penetration
 from .shapes import make_shape
 from ..solver.tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
@@ -78,6 +79,7 @@ class Scene:
                     density=body.density, velocity=body.velocity, force=body.force, friction=body.friction,
                     restitution=body.restitution, compliance=body.compliance, damping=body.damping,
                     drag=body.drag, spin_friction=body.spin_friction, self_collision=body.self_collision,
+                    bending=body.bending,
                     source=str(config.base_dir / body.mesh) if body.mesh else None))
             except ValueError as exc:  # SceneError included
                 raise SceneError(f"{config.source}: {exc}") from None
@@ -208,7 +210,7 @@ class Scene:
         """(B, 3): centre of mass of rigid bodies, vertex mean of soft and static ones."""
         x = self.state.body_x.to_numpy()[: self.model.n_bodies].astype(np.float64)
         for k, b in enumerate(self.model.bodies):
-            if b.kind == "soft":
+            if b.deformable:
                 x[k] = self.body_vertices(b.name).mean(axis=0)
         return x
 
@@ -296,8 +298,9 @@ class Scene:
         """Each soft body's name → (pairs of its own triangles that cross, the deepest of them
         in m), measured from its mesh alone (measure.self_intersection.self_penetration)."""
         x = self.vertices() if vertices is None else vertices
-        return {b.name: self_penetration(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces)
-                for b in self.model.bodies if b.kind == "soft"}
+        return {b.name: (sheet_self_penetration if b.kind == "cloth" else self_penetration)(
+                    x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces)
+                for b in self.model.bodies if b.deformable}
 
     def _world_bodies(self, x: np.ndarray) -> list[tuple[str, str, trimesh.Trimesh]]:
         """(name, kind, mesh at the vertices x (V, 3)) of every body."""

@@ -1,6 +1,6 @@
 """Built-in procedural shapes, usable in scene files as `shape = "..."` with their
 parameters in `[body.params]`. Each returns a closed, outward-oriented, watertight
-trimesh.Trimesh without T-junctions (y up, metres).
+trimesh.Trimesh without T-junctions (y up, metres), but `sheet`, an open square for a cloth.
 
 The Erleben shapes (spike, wedge, crack_block, hole_block, ground) stand on y = 0:
 their lowest face lies in that plane (the ground's top face does), centred on x and z.
@@ -148,6 +148,28 @@ def coil(coil_radius: float = 0.5, tube_radius: float = 0.08, pitch: float = 0.3
     return mesh
 
 
+def sheet(size: float = 1.0, cells: int = 20) -> trimesh.Trimesh:
+    """An open square sheet for a cloth: `size` × `size` in the plane y = 0, centred on the
+    origin, `cells` × `cells` squares each cut into two triangles, the diagonals alternating
+    so that the sheet folds alike along both axes; normals +y."""
+    size = _positive("size", size)
+    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 1000:
+        raise ValueError(f"cells must be a whole number from 1 to 1000, got {cells!r}")
+    t = np.linspace(-0.5 * size, 0.5 * size, cells + 1)
+    x, z = np.meshgrid(t, t, indexing="ij")
+    vertices = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
+    faces = []
+    for i in range(cells):
+        for j in range(cells):
+            a, b = i * (cells + 1) + j, (i + 1) * (cells + 1) + j  # (i, j), (i+1, j)
+            c, d = b + 1, a + 1                                     # (i+1, j+1), (i, j+1)
+            if (i + j) % 2 == 0:
+                faces += [(a, d, c), (a, c, b)]
+            else:
+                faces += [(a, d, b), (d, c, b)]
+    return _mesh(vertices, faces)
+
+
 def extrude(outline, length: float) -> trimesh.Trimesh:
     """A prism: the simple polygon `outline` ((x, y) pairs, counter-clockwise, no repeated
     point) extruded along z from −length/2 to length/2; caps by ear clipping, sides as quads."""
@@ -203,7 +225,7 @@ def _mesh(vertices, faces) -> trimesh.Trimesh:
 
 
 SHAPES = {"box": box, "icosphere": icosphere, "spike": spike, "wedge": wedge, "crack_block": crack_block,
-          "hole_block": hole_block, "ground": ground, "coil": coil}
+          "hole_block": hole_block, "ground": ground, "coil": coil, "sheet": sheet}
 
 
 def make_shape(name: str, params: dict) -> trimesh.Trimesh:
@@ -211,7 +233,7 @@ def make_shape(name: str, params: dict) -> trimesh.Trimesh:
     if name not in SHAPES:
         raise ValueError(f"unknown shape {name!r} (built-in: {', '.join(SHAPES)})")
     params = dict(params)
-    refine = 0 if name in ("box", "icosphere", "coil") else params.pop("subdivisions", 0)
+    refine = 0 if name in ("box", "icosphere", "coil", "sheet") else params.pop("subdivisions", 0)
     try:
         mesh = SHAPES[name](**params)
     except TypeError as exc:

@@ -139,7 +139,8 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
     if fresh:
         rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1)
         parts["solver"] = _allocate(rows, m.has_soft)
-        parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft)
+        parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft,
+                                   has_cloth=m.has_cloth)
         parts["state"] = FieldView({k: field_set.fields[k] for k in STATE_FIELD_NAMES})
     has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
     key = ("sim", rules, has_spin_friction)

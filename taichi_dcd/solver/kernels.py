@@ -105,6 +105,12 @@ def begin_substep(sim: ti.template(), h: float, gravity: vec3, kick: float,
         vertex_nd[i] = sim.state.vertex_x[i]
 
 @ti.kernel
+def copy_prev_positions(sim: ti.template(), vertex_prev_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
+    """The vertices' positions at the substep's start, for the grid's two-sided (cloth) pairs."""
+    for i in range(sim.model.vertex_count[0]):
+        vertex_prev_nd[i] = sim.state.vertex_x_prev[i]
+
+@ti.kernel
 def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
                  top_speed: float, depenetration: float, n_pairs: ti.i32,
                  p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),

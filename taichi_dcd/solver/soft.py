@@ -1,4 +1,5 @@
-"""Soft bodies' own constraints: XPBD edge lengths and the closed body's volume."""
+"""Soft bodies' own constraints: XPBD edge lengths (a cloth's bending pairs among them) and the
+closed body's volume."""
 
 import taichi as ti
 
@@ -10,11 +11,12 @@ vec3 = ti.math.vec3
 
 @ti.func
 def solve_edge(sim: ti.template(), e: ti.i32, h: float):
-    """XPBD edge-length constraint C = |x_i − x_j| − L with the body's compliance."""
+    """XPBD edge-length constraint C = |x_i − x_j| − L with the edge's compliance α (Macklin
+    et al. 2016, Eq. 18: Δλ = (−C − α̃λ)/(w_i + w_j + α̃), α̃ = α/h²)."""
     ij = sim.model.edge_indices[e]
     c, grad = edge_length(sim.state.vertex_x[ij[0]], sim.state.vertex_x[ij[1]], sim.model.edge_rest[e])
     wi, wj = sim.model.vertex_inv_mass[ij[0]], sim.model.vertex_inv_mass[ij[1]]
-    alpha = sim.model.body_compliance[sim.model.vertex_body[ij[0]]] / (h * h)
+    alpha = sim.model.edge_compliance[e] / (h * h)
     dl = xpbd_delta_lambda(c, wi + wj, sim.edge_lambda[e], alpha)
     sim.edge_lambda[e] += dl
     sim.state.vertex_x[ij[0]] += wi * dl * grad
@@ -24,8 +26,9 @@ def solve_edge(sim: ti.template(), e: ti.i32, h: float):
 @ti.func
 def solve_volume(sim: ti.template(), b: ti.i32):
     """Volume constraint of a closed soft body, C = V − V₀ with V = Σ (x0×x1)·x2 / 6 over
-    its triangles and ∇_i V = Σ over i's triangles of (x_j × x_k)/6 (hard: α = 0)."""
-    if sim.model.body_kind[b] == SOFT:
+    its triangles and ∇_i V = Σ over i's triangles of (x_j × x_k)/6 (hard: α = 0). A cloth
+    has no volume."""
+    if sim.model.body_kind[b] == SOFT and sim.model.body_cloth[b] == 0:
         v_lo, v_hi = sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]
         for i in range(v_lo, v_hi):
             sim.vertex_grad[i] = vec3(0.0)

@@ -38,7 +38,15 @@ from ..contact.vertex_rows import VERTEX_ROWS_PER_PAIR, VERTEX_ROWS_PER_PAIR_SOF
 from ..core import runtime
 from ..core.model import STATIC, Model, State
 from .fields import solver_fields
-from .kernels import OVERFLOW, begin_substep, end_substep, frames_all_pairs, rows_at_state_kernel, summarize_kernel
+from .kernels import (
+    OVERFLOW,
+    begin_substep,
+    copy_prev_positions,
+    end_substep,
+    frames_all_pairs,
+    rows_at_state_kernel,
+    summarize_kernel,
+)
 
 
 # Above this many triangle pairs between body boxes (summed over body pairs, upper
@@ -115,6 +123,7 @@ class XPBDSolver:
         self.sim = solver_fields(model, state, rules)
         self.sim.sleep_speed[0] = float(sleep_speed)
         self.sim.sleep_time[0] = float(sleep_time)
+        self.vertex_prev_nd = None
         if self.use_grid:
             tri_static = kind[m.tri_body_np] == STATIC
             self.pipeline = CollisionPipeline(m.tri_indices_np, m.tri_body_np, tri_static,
@@ -122,10 +131,14 @@ class XPBDSolver:
                                               contact_capacity=max(1024, m.n_tris), skin=GRID_SKIN,
                                               margin=float(self.sim.box_margin_np.max(initial=0.0)),
                                               keep_touching=True, keep_pressed=m.has_soft,
-                                              tri_hidden=m.tri_hidden_np, body_self=body_self)
+                                              tri_hidden=m.tri_hidden_np, body_self=body_self,
+                                              tri_two_sided=m.tri_cloth_np() if m.has_cloth else None)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
+            # A cloth's triangles face each other as they were at the substep's start.
+            self.vertex_prev_nd = (ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
+                                   if m.has_cloth else None)
         self.thinnest = min(min(b.thickness for b in m.bodies), 1e30)
-        self.soft_vertex_count = int(sum(b.vertex_count for b in m.bodies if b.kind == "soft"))
+        self.soft_vertex_count = int(sum(b.vertex_count for b in m.bodies if b.deformable))
         self.last_contact_count = 0
         # Set to a dict to have the grid path add up the wall seconds of its phases
         # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
@@ -264,7 +277,9 @@ class XPBDSolver:
             if timing is not None:
                 ti.sync()
                 timing["predict"] = timing.get("predict", 0.0) + time.perf_counter() - start
-            self.pipeline.run(self.vertex_nd, timing)
+            if self.vertex_prev_nd is not None:
+                copy_prev_positions(self.sim, self.vertex_prev_nd)
+            self.pipeline.run(self.vertex_nd, timing, self.vertex_prev_nd)
             start = time.perf_counter()
             pc = self.pipeline.contacts
             rows = VERTEX_ROWS_PER_PAIR_SOFT if self.model.has_soft else VERTEX_ROWS_PER_PAIR

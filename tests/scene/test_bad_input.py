@@ -94,10 +94,29 @@ BAD_SCENES = {
     "unknown_shape": ('[[body]]\nname = "a"\nkind = "rigid"\nshape = "cone"\n', ["unknown shape 'cone'"]),
     "unknown_kind": ('[[body]]\nname = "a"\nkind = "jelly"\nshape = "spike"\n', ["unknown kind 'jelly'"]),
     "rigid_self_collision": (scene_text(body_extra="self_collision = true"), ["'thing'", "self_collision",
-                                                                             "soft bodies only"]),
+                                                                             "soft bodies and cloth only"]),
+    "bending_on_rigid": (scene_text(body_extra="bending = 0.1"), ["'thing'", "bending", "cloth only"]),
     "duplicate_names": ('[[body]]\nname = "a"\nkind = "rigid"\nshape = "spike"\n'
                         '[[body]]\nname = "a"\nkind = "static"\nshape = "ground"\n', ["duplicate body name 'a'"]),
 }
+
+
+FAN_V = ["v 0 0 0", "v 1 0 0", "v 0 0 1", "v 0 1 0", "v -1 0 0"]
+
+
+@pytest.mark.parametrize("faces, error", [
+    (["f 1 2 3", "f 1 3 4"], None),                          # an open sheet: a cloth may be one
+    (["f 1 2 3", "f 1 3 4", "f 1 3 5"], "shared by 3 faces"),  # three faces on one edge: not a sheet
+])
+def test_a_cloth_may_be_open_but_not_crowded(tmp_path, faces, error):
+    (tmp_path / "sheet.obj").write_text(obj(FAN_V + faces))
+    (tmp_path / "scene.toml").write_text(scene_text(mesh="sheet.obj", sim="frames = 1").replace(
+        'kind = "rigid"', 'kind = "cloth"'))
+    result = run_cli("run", "scene.toml", "--no-frames", "--quiet", "--out", "out", cwd=tmp_path)
+    if error is None:
+        assert result.returncode == 0, result.stderr
+    else:
+        assert_one_line_error(result, 2, "sheet.obj", "not manifold", error)
 
 
 @pytest.mark.parametrize("case", list(BAD_SCENES))

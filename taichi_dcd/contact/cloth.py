@@ -1,0 +1,50 @@
+"""Cloth in the contact rules: a triangle pair's vertices with each cloth triangle turned to
+face the other (collision.two_sided), for the narrow phase and the rules that read faces."""
+
+import taichi as ti
+
+from ..collision.two_sided import flipped, two_sided_flips
+from ..core.model import SOFT
+
+vec3 = ti.math.vec3
+
+
+@ti.func
+def is_cloth(sim: ti.template(), t: ti.i32) -> bool:
+    """Whether triangle t belongs to a cloth (always False where no body is one)."""
+    out = False
+    if ti.static(sim.model.has_cloth):
+        b = sim.model.tri_body[t]
+        out = sim.model.body_kind[b] == SOFT and sim.model.body_cloth[b] != 0
+    return out
+
+
+@ti.func
+def pair_vertices(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
+    """The current vertices (a0, a1, a2, b0, b1, b2) of triangles t_a and t_b, a cloth
+    triangle's last two swapped where it faces away from the other (two_sided_flips)."""
+    ia, ib = sim.model.tri_indices[t_a], sim.model.tri_indices[t_b]
+    a0, a1, a2 = sim.state.vertex_x[ia[0]], sim.state.vertex_x[ia[1]], sim.state.vertex_x[ia[2]]
+    b0, b1, b2 = sim.state.vertex_x[ib[0]], sim.state.vertex_x[ib[1]], sim.state.vertex_x[ib[2]]
+    if ti.static(sim.model.has_cloth):
+        cloth_a, cloth_b = is_cloth(sim, t_a), is_cloth(sim, t_b)
+        if cloth_a or cloth_b:
+            flip_a, flip_b = two_sided_flips(
+                a0, a1, a2, b0, b1, b2,
+                sim.state.vertex_x_prev[ia[0]], sim.state.vertex_x_prev[ia[1]], sim.state.vertex_x_prev[ia[2]],
+                sim.state.vertex_x_prev[ib[0]], sim.state.vertex_x_prev[ib[1]], sim.state.vertex_x_prev[ib[2]],
+                cloth_a, cloth_b)
+            a0, a1, a2 = flipped(a0, a1, a2, flip_a)
+            b0, b1, b2 = flipped(b0, b1, b2, flip_b)
+    return a0, a1, a2, b0, b1, b2
+
+
+@ti.func
+def facing_against(sim: ti.template(), t: ti.i32, n: vec3, other_normal: vec3) -> vec3:
+    """Unit normal n of triangle t, reversed if t is a cloth triangle facing along
+    `other_normal` (the one-sided face it meets): a cloth faces what it touches."""
+    out = n
+    if ti.static(sim.model.has_cloth):
+        if is_cloth(sim, t) and n.dot(other_normal) > 0.0:
+            out = -n
+    return out
