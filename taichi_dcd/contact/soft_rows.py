@@ -4,7 +4,7 @@ convex edges under a soft triangle."""
 import taichi as ti
 
 from ..core.model import SOFT
-from .cloth import facing_against, is_cloth
+from .cloth import is_cloth
 from .rows import is_duplicate, write_contact
 from .vertex_rows import vertex_over_face
 
@@ -87,15 +87,27 @@ def add_sharp_edge_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, 
                     if sim.model.body_kind[b] != SOFT:
                         for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                             if sim.tri_sharp_edges[t] != 0 and sim.model.tri_hidden[t] == 0:
-                                n_face = n_s
-                                if is_cloth(sim, t_s):
-                                    io = sim.model.tri_indices[t]
-                                    q0 = sim.state.vertex_x[io[0]]
-                                    n_t = (sim.state.vertex_x[io[1]] - q0).cross(sim.state.vertex_x[io[2]] - q0)
-                                    n_face = facing_against(sim, t_s, n_s, n_t)
-                                n_rows = edge_under_soft_triangle(sim, rows, n_rows, t_s, t, n_face, lo, hi, skin,
+                                n_rows = edge_under_soft_triangle(sim, rows, n_rows, t_s, t, n_s, lo, hi, skin,
                                                                   max_push)
     return n_rows
+
+
+@ti.func
+def facing_edge(sim: ti.template(), t: ti.i32, k: ti.i32, n_s: vec3) -> vec3:
+    """A cloth triangle's unit normal n_s turned to face edge k of triangle t: against the
+    edge's outward direction, the sum of the unit normals of t and of the face across the
+    edge (tri_convex_nbr). Not against t's normal alone, as in the narrow phase: a ridge's
+    edge may belong to the face across the ridge from the cloth, whose normal would turn
+    the cloth away from the ridge."""
+    io = sim.model.tri_indices[t]
+    q0 = sim.state.vertex_x[io[0]]
+    out = (sim.state.vertex_x[io[1]] - q0).cross(sim.state.vertex_x[io[2]] - q0).normalized()
+    nbr = sim.tri_convex_nbr[t][k]
+    if nbr >= 0:
+        ib = sim.model.tri_indices[nbr]
+        p0 = sim.state.vertex_x[ib[0]]
+        out += (sim.state.vertex_x[ib[1]] - p0).cross(sim.state.vertex_x[ib[2]] - p0).normalized()
+    return ti.select(n_s.dot(out) > 0.0, -n_s, n_s)
 
 
 @ti.func
@@ -115,6 +127,10 @@ def edge_under_soft_triangle(sim: ti.template(), rows: ti.template(), total: ti.
     for k in ti.static(range(3)):
         if (bits >> k) & 1:
             qa, qb = sim.state.vertex_x[io[k]], sim.state.vertex_x[io[(k + 1) % 3]]
+            n_face = n_s
+            if ti.static(sim.model.has_cloth):
+                if is_cloth(sim, t_s):
+                    n_face = facing_edge(sim, t, k, n_s)
             if (ti.max(qa, qb) >= lo).all() and (ti.min(qa, qb) <= hi).all():
                 t0, t1 = 0.0, 1.0
                 e = qb - qa
@@ -130,13 +146,13 @@ def edge_under_soft_triangle(sim: ti.template(), rows: ti.template(), total: ti.
                     elif g0 < 0.0:
                         t1 = -1.0
                 if t0 <= t1:
-                    d0 = n_s.dot(qa + t0 * e - p0)
-                    d1 = n_s.dot(qa + t1 * e - p0)
+                    d0 = n_face.dot(qa + t0 * e - p0)
+                    d1 = n_face.dot(qa + t1 * e - p0)
                     d = ti.min(d0, d1)
                     q = qa + ti.select(d0 <= d1, t0, t1) * e
                     if ti.abs(d) <= skin and not is_duplicate(sim, rows, ti.min(n_rows, rows.tri.shape[0]), t, t_s,
-                                                              n_s, q):
+                                                              n_face, q):
                         if n_rows < rows.tri.shape[0]:
-                            write_contact(sim, rows, n_rows, t, t_s, -d, n_s, q, max_push)
+                            write_contact(sim, rows, n_rows, t, t_s, -d, n_face, q, max_push)
                         n_rows += 1
     return n_rows
