@@ -16,7 +16,7 @@ from .contacts import Contacts
 from ..core.geometry import vec3
 from ..core.launch import Launcher
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
-from .two_sided import flipped, two_sided_flips
+from .two_sided import flipped, moved_together, two_sided_flips
 
 
 @ti.kernel
@@ -31,7 +31,7 @@ def _collide_candidates(
     contact_side: ti.types.ndarray(ndim=1),
     contact_point: ti.types.ndarray(dtype=vec3, ndim=1),
     contact_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    tri_two_sided: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri_sheet_gap: ti.types.ndarray(ndim=1),
     particle_x_prev: ti.types.ndarray(dtype=vec3, ndim=1),
     serial: ti.template(),
     keep_touching: ti.template(),
@@ -41,9 +41,10 @@ def _collide_candidates(
     """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
     intersecting ones (and with keep_touching those it calls touching, with keep_pressed
     those pressed through each other, with side -1) and returns how many there are (more
-    than the capacity on overflow). With two_sided, a triangle flagged in tri_two_sided
-    faces the other one of its pair first (two_sided.two_sided_flips; particle_x_prev: the
-    positions at the substep's start)."""
+    than the capacity on overflow). With two_sided, a triangle with a gap in tri_sheet_gap
+    (m, 0 for one-sided ones) faces the other one of its pair first (two_sided.two_sided_flips;
+    particle_x_prev: the positions at the substep's start), and two such triangles are moved
+    together by the mean of their gaps (two_sided.moved_together)."""
     contact_count[0] = 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
@@ -52,7 +53,7 @@ def _collide_candidates(
         a0, a1, a2 = particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]]
         b0, b1, b2 = particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]]
         if ti.static(two_sided):
-            cloth_a, cloth_b = tri_two_sided[ab[0]] != 0, tri_two_sided[ab[1]] != 0
+            cloth_a, cloth_b = tri_sheet_gap[ab[0]] > 0.0, tri_sheet_gap[ab[1]] > 0.0
             if cloth_a or cloth_b:
                 flip_a, flip_b = two_sided_flips(
                     a0, a1, a2, b0, b1, b2,
@@ -60,6 +61,9 @@ def _collide_candidates(
                     particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b)
                 a0, a1, a2 = flipped(a0, a1, a2, flip_a)
                 b0, b1, b2 = flipped(b0, b1, b2, flip_b)
+                if cloth_a and cloth_b:
+                    a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2,
+                                                            0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
         hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
         keep = hit
         if ti.static(keep_touching):
@@ -94,19 +98,20 @@ class CollisionPipeline:
     other with one triangle wholly behind the other's plane (narrowphase.pressed_through),
     from which the solver makes contacts for soft patches sagged through a face.
     body_self (n_bodies,) bool: bodies whose own triangles collide (as for `UniformGrid`).
-    tri_two_sided (m,) bool: two-sided (cloth) triangles, each turned to face the other
-    triangle of its pair (collision.two_sided); `run` then needs the positions at the
-    substep's start too. Buffers start at the given capacities and grow whenever a query overflows them.
+    tri_sheet_gap (m,) float: for two-sided (cloth) triangles the gap (m, > 0) two of them
+    keep, 0 for the others; each is turned to face the other triangle of its pair
+    (collision.two_sided), and `run` then needs the positions at the substep's start too.
+    Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
                  skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None,
-                 body_self=None, tri_two_sided=None):
-        self.two_sided = tri_two_sided is not None and bool(np.any(tri_two_sided))
-        self.tri_two_sided = ti.ndarray(ti.i32, shape=max(len(tri_indices), 1) if self.two_sided else 1)
+                 body_self=None, tri_sheet_gap=None):
+        self.two_sided = tri_sheet_gap is not None and bool(np.any(np.asarray(tri_sheet_gap) > 0.0))
+        self.tri_sheet_gap = ti.ndarray(runtime.real_type(), shape=max(len(tri_indices), 1) if self.two_sided else 1)
         if self.two_sided:
-            self.tri_two_sided.from_numpy(np.asarray(tri_two_sided, np.int32))
+            self.tri_sheet_gap.from_numpy(np.asarray(tri_sheet_gap, runtime.real_dtype()))
         self.keep_touching = bool(keep_touching)
         self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
@@ -130,7 +135,7 @@ class CollisionPipeline:
         c = self.contacts
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
-                                    c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_two_sided,
+                                    c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
                                     particle_x if particle_x_prev is None else particle_x_prev,
                                     runtime.serial_loops(n_pairs), self.keep_touching, self.keep_pressed,
                                     self.two_sided)

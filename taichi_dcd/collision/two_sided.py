@@ -52,3 +52,14 @@ def flipped(p0: vec3, p1: vec3, p2: vec3, flip: bool):
     q1 = ti.select(flip, p2, p1)
     q2 = ti.select(flip, p1, p2)
     return p0, q1, q2
+
+
+@ti.func
+def moved_together(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3, gap: float):
+    """Two triangles facing each other, each moved gap/2 along its own unit normal (towards
+    the other): they cross when the real ones are closer than the gap."""
+    n_a = (a1 - a0).cross(a2 - a0)
+    n_b = (b1 - b0).cross(b2 - b0)
+    shift_a = (0.5 * gap / ti.max(n_a.norm(), 1e-300)) * n_a
+    shift_b = (0.5 * gap / ti.max(n_b.norm(), 1e-300)) * n_b
+    return a0 + shift_a, a1 + shift_a, a2 + shift_a, b0 + shift_b, b1 + shift_b, b2 + shift_b

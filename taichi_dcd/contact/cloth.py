@@ -1,12 +1,20 @@
 """Cloth in the contact rules: a triangle pair's vertices with each cloth triangle turned to
-face the other (collision.two_sided), for the narrow phase and the rules that read faces."""
+face the other (collision.two_sided), for the narrow phase and the rules that read faces, and
+the gap two sheets keep between them."""
 
 import taichi as ti
 
-from ..collision.two_sided import flipped, two_sided_flips
+from ..collision.two_sided import flipped, moved_together, two_sided_flips
 from ..core.model import SOFT
 
 vec3 = ti.math.vec3
+
+# Two cloth triangles (two sheets, or one sheet folded) keep this fraction of their sheets'
+# mesh spacing between them: the unified test sees only triangles that cross, and sheets of no
+# thickness resting on each other come to lie in one plane, where any wrinkle crosses them.
+# The pair is tested with each triangle moved half the gap towards the other, and its row
+# holds the gap (write_contact).
+CLOTH_GAP_FRACTION = 0.02
 
 
 @ti.func
@@ -20,9 +28,22 @@ def is_cloth(sim: ti.template(), t: ti.i32) -> bool:
 
 
 @ti.func
+def cloth_gap(sim: ti.template(), t_a: ti.i32, t_b: ti.i32) -> float:
+    """The gap (m) triangles t_a and t_b keep: CLOTH_GAP_FRACTION of their sheets' mean
+    spacing when both are cloth, else 0."""
+    gap = 0.0
+    if ti.static(sim.model.has_cloth):
+        if is_cloth(sim, t_a) and is_cloth(sim, t_b):
+            gap = ti.static(CLOTH_GAP_FRACTION) * 0.5 * (sim.body_thickness[sim.model.tri_body[t_a]]
+                                                         + sim.body_thickness[sim.model.tri_body[t_b]])
+    return gap
+
+
+@ti.func
 def pair_vertices(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
     """The current vertices (a0, a1, a2, b0, b1, b2) of triangles t_a and t_b, a cloth
-    triangle's last two swapped where it faces away from the other (two_sided_flips)."""
+    triangle's last two swapped where it faces away from the other (two_sided_flips); two
+    cloth triangles each moved half their gap towards the other (moved_together)."""
     ia, ib = sim.model.tri_indices[t_a], sim.model.tri_indices[t_b]
     a0, a1, a2 = sim.state.vertex_x[ia[0]], sim.state.vertex_x[ia[1]], sim.state.vertex_x[ia[2]]
     b0, b1, b2 = sim.state.vertex_x[ib[0]], sim.state.vertex_x[ib[1]], sim.state.vertex_x[ib[2]]
@@ -36,6 +57,8 @@ def pair_vertices(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
                 cloth_a, cloth_b)
             a0, a1, a2 = flipped(a0, a1, a2, flip_a)
             b0, b1, b2 = flipped(b0, b1, b2, flip_b)
+            if cloth_a and cloth_b:
+                a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, cloth_gap(sim, t_a, t_b))
     return a0, a1, a2, b0, b1, b2
 
 

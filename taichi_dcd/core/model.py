@@ -113,10 +113,6 @@ class Model:
     body_kind_np: np.ndarray = field(default=None, repr=False)  # a copy of body_kind, read every frame
     field_set: object = field(default=None, repr=False)  # the pool's set holding these fields
 
-    def tri_cloth_np(self) -> np.ndarray:
-        """(T,) bool: the triangles of cloth bodies."""
-        return np.repeat([b.kind == "cloth" for b in self.bodies], [b.tri_count for b in self.bodies])
-
     def body_index(self, name: str) -> int:
         for k, b in enumerate(self.bodies):
             if b.name == name:

@@ -30,7 +30,7 @@ STACKS = ["stack", "pyramid"]
 # Soft bodies touching themselves (self_collision): listed and run by name, left out of `all`.
 SELF_TOUCHING = ["soft-coil"]
 # Cloth (an open sheet) draped over a sharp feature: listed and run by name, left out of `all`.
-CLOTH = ["cloth-on-spike", "cloth-on-wedge"]
+CLOTH = ["cloth-on-spike", "cloth-on-wedge", "two-cloths-on-box"]
 # Every built-in scene, `all` first.
 KNOWN = [*ALL, *LARGE, *STACKS, *SELF_TOUCHING, *CLOTH]
 

@@ -8,6 +8,7 @@ import taichi as ti
 
 from ..contact.exits import convex_neighbours, sharp_edge_bits
 from ..contact.rules import ContactRules
+from ..contact.cloth import CLOTH_GAP_FRACTION
 from ..contact.soft_rows import SOFT_BOX_MARGIN
 from ..core import pool, runtime
 from ..core.model import (MODEL_FIELD_NAMES, SOFT, STATE_FIELD_NAMES, Model, State, mat_field, scalar_field,
@@ -158,7 +159,9 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
     real = runtime.real_dtype()
     rest_x = state.vertex_x.to_numpy()[: m.n_vertices]
     thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
-    box_margin = np.where(kind == SOFT, SOFT_BOX_MARGIN * thickness, 0.0)
+    # A cloth's boxes also reach as far as the gap its triangles keep from other sheets'.
+    margin = np.array([max(SOFT_BOX_MARGIN, CLOTH_GAP_FRACTION if b.kind == "cloth" else 0.0) for b in m.bodies])
+    box_margin = np.where(kind == SOFT, margin * thickness, 0.0)
     vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
     vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
     data = {

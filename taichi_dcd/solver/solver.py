@@ -31,6 +31,7 @@ import numpy as np
 import taichi as ti
 
 from ..collision.pipeline import CollisionPipeline
+from ..contact.cloth import CLOTH_GAP_FRACTION
 from ..contact.rows import ContactConstraints
 from ..contact.rules import ContactRules
 from ..contact.soft_rows import RESTING_ROWS_PER_SOFT_VERTEX
@@ -76,6 +77,13 @@ EXPLOSION_SPEED_FLOOR = 1e4
 
 class SimulationError(RuntimeError):
     """The simulation produced NaN, a body exploded or left the scene; the message names the body."""
+
+
+def sheet_gaps(m: Model) -> np.ndarray:
+    """(T,) the gap (m) each cloth triangle keeps from other cloth triangles
+    (contact.cloth.CLOTH_GAP_FRACTION of its sheet's spacing), 0 for the others."""
+    return np.repeat([CLOTH_GAP_FRACTION * b.thickness if b.kind == "cloth" else 0.0 for b in m.bodies],
+                     [b.tri_count for b in m.bodies])
 
 
 class XPBDSolver:
@@ -132,7 +140,7 @@ class XPBDSolver:
                                               margin=float(self.sim.box_margin_np.max(initial=0.0)),
                                               keep_touching=True, keep_pressed=m.has_soft,
                                               tri_hidden=m.tri_hidden_np, body_self=body_self,
-                                              tri_two_sided=m.tri_cloth_np() if m.has_cloth else None)
+                                              tri_sheet_gap=sheet_gaps(m) if m.has_cloth else None)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
             # A cloth's triangles face each other as they were at the substep's start.
             self.vertex_prev_nd = (ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))

@@ -53,6 +53,31 @@ def test_a_cloth_rests_flat_on_a_block_whichever_way_its_faces_point(f64_scene):
     assert abs(heights[0] - heights[1]) < 1e-5
 
 
+def test_two_sheets_dropped_on_each_other_keep_their_gap(f64_scene):
+    """Two 0.6 m sheets, the upper turned 30°, dropped 1 cm apart onto a block: the lower rests
+    on the block, the upper (where it lies over the lower) on the lower at their gap (CLOTH_GAP_FRACTION of the 7.5 cm
+    spacing: 1.5 mm), and no triangle of one crosses the other. (Without the gap the two came
+    to lie in one plane.)"""
+    from taichi_dcd.contact.cloth import CLOTH_GAP_FRACTION
+    from taichi_dcd.measure.cloth import sheet_crossings
+
+    def sheet_body(name, y, turn):
+        return {"name": name, "kind": "cloth", "shape": "sheet", "params": {"size": 0.6, "cells": 8},
+                "position": [0.0, y, 0.0], "rotation": [0.0, turn, 0.0], "compliance": 1e-6, "bending": 1e-3,
+                "damping": 10.0, "drag": 3.0}
+
+    scene = Scene(scene_from_dict({"sim": {"substeps": 12, "iterations": 16}, "body": [
+        {"name": "block", "kind": "static", "shape": "box", "params": {"size": [1.0, 0.2, 1.0]}},
+        sheet_body("lower", 0.12, 0.0), sheet_body("upper", 0.13, 30.0)]}, name="two"))
+    scene.step(40)
+    lower, upper = scene.body_vertices("lower"), scene.body_vertices("upper")
+    gap = CLOTH_GAP_FRACTION * 0.6 / 8 * (1.0 + (2.0 ** 0.5 - 1.0) / 3.0)  # mean edge: sides and diagonals
+    assert np.abs(lower[:, 1] - 0.1).max() < 1e-4
+    over = (np.abs(upper[:, 0]) < 0.2) & (np.abs(upper[:, 2]) < 0.2)  # well inside the lower's square
+    assert over.sum() > 20 and np.abs(upper[over, 1] - 0.1 - gap).max() < 0.1 * gap
+    assert sheet_crossings(lower, scene.body_faces("lower"), upper, scene.body_faces("upper")) == (0, 0.0)
+
+
 @pytest.mark.slow
 def test_the_built_in_cloth_on_spike_drapes_without_being_pierced(f64_scene):
     """`cloth-on-spike` (self_collision on, the grid): over its first 2 s, through the landing on
