@@ -148,6 +148,23 @@ def coil(coil_radius: float = 0.5, tube_radius: float = 0.08, pitch: float = 0.3
     return mesh
 
 
+def torus(major_radius: float = 0.5, minor_radius: float = 0.15, sections: int = 48,
+          tube_sections: int = 12) -> trimesh.Trimesh:
+    """A ring about y centred on the origin: a tube of radius `minor_radius` around a circle of
+    radius `major_radius` in y = 0, `sections` × `tube_sections` quads of two triangles."""
+    major, minor = _positive("major_radius", major_radius), _positive("minor_radius", minor_radius)
+    if not minor < major:
+        raise ValueError(f"minor_radius must be below major_radius, got {minor} and {major}")
+    for name, value in (("sections", sections), ("tube_sections", tube_sections)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 3 <= value <= 1000:
+            raise ValueError(f"{name} must be a whole number from 3 to 1000, got {value!r}")
+    ring = trimesh.creation.torus(major, minor, major_sections=sections, minor_sections=tube_sections)
+    ring.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1.0, 0.0, 0.0]))  # z-axis ring -> y
+    if ring.volume < 0:
+        ring.invert()
+    return ring
+
+
 def sheet(size: float = 1.0, cells: int = 20) -> trimesh.Trimesh:
     """An open square sheet for a cloth: `size` × `size` in the plane y = 0, centred on the
     origin, `cells` × `cells` squares each cut into two triangles, the diagonals alternating
@@ -225,7 +242,7 @@ def _mesh(vertices, faces) -> trimesh.Trimesh:
 
 
 SHAPES = {"box": box, "icosphere": icosphere, "spike": spike, "wedge": wedge, "crack_block": crack_block,
-          "hole_block": hole_block, "ground": ground, "coil": coil, "sheet": sheet}
+          "hole_block": hole_block, "ground": ground, "coil": coil, "sheet": sheet, "torus": torus}
 
 
 def make_shape(name: str, params: dict) -> trimesh.Trimesh:
@@ -233,7 +250,7 @@ def make_shape(name: str, params: dict) -> trimesh.Trimesh:
     if name not in SHAPES:
         raise ValueError(f"unknown shape {name!r} (built-in: {', '.join(SHAPES)})")
     params = dict(params)
-    refine = 0 if name in ("box", "icosphere", "coil", "sheet") else params.pop("subdivisions", 0)
+    refine = 0 if name in ("box", "icosphere", "coil", "sheet", "torus") else params.pop("subdivisions", 0)
     try:
         mesh = SHAPES[name](**params)
     except TypeError as exc:

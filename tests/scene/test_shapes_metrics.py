@@ -185,3 +185,18 @@ def test_penetration_measure_scales_with_the_scene(scale):
                                            for m in pair))
         assert depth == pytest.approx(unscaled[0] * scale, rel=1e-9)
         assert volume == pytest.approx(unscaled[1] * scale ** 3, rel=1e-6)
+
+
+def test_torus_is_a_closed_outward_ring_about_y():
+    """The faceted ring's volume is Pappus's: its 12-gon section's area 6·r²·sin(30°) swept
+    round a 48-gon of radius R (2πR·sin(7.5°)/(7.5° in rad))."""
+    ring = shapes.make_shape("torus", {"major_radius": 0.4, "minor_radius": 0.1})
+    welded = trimesh.Trimesh(ring.vertices, ring.faces)
+    assert len(welded.vertices) == len(ring.vertices)
+    assert ring.is_watertight and ring.is_winding_consistent and ring.volume > 0
+    section = 6 * 0.1 ** 2 * math.sin(2 * math.pi / 12)
+    sweep = 2 * math.pi * 0.4 * math.sin(2 * math.pi / 48) / (2 * math.pi / 48)
+    assert ring.volume == pytest.approx(section * sweep, rel=1e-9)
+    np.testing.assert_allclose(ring.bounds, [[-0.5, -0.1, -0.5], [0.5, 0.1, 0.5]], atol=1e-12)
+    with pytest.raises(ValueError, match="minor_radius must be below major_radius"):
+        shapes.make_shape("torus", {"major_radius": 0.1, "minor_radius": 0.2})
