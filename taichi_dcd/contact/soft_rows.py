@@ -27,11 +27,29 @@ def add_resting_contacts(sim: ti.template(), rows: ti.template(), total: ti.i32,
     """The resting rows of soft bodies (rules `resting_rows` and `sharp_edge_rows`), after row
     total-1 while they fit; returns the rows needed."""
     n_rows = total
+    if ti.static(sim.model.has_soft and (sim.rules.resting_rows or sim.rules.sharp_edge_rows)):
+        solid_boxes(sim)
     if ti.static(sim.model.has_soft and sim.rules.resting_rows):
         n_rows = add_resting_vertex_rows(sim, rows, n_rows, max_push)
     if ti.static(sim.model.has_soft and sim.rules.sharp_edge_rows):
         n_rows = add_sharp_edge_rows(sim, rows, n_rows, max_push)
     return n_rows
+
+
+@ti.func
+def solid_boxes(sim: ti.template()):
+    """Each rigid or static body's vertex box now (solid_lo, solid_hi): a soft vertex or
+    triangle whose box, padded by the skin, misses it meets none of that body's faces or
+    edges, and the rows below skip the body's triangles (a 9,800-triangle cloth spent 3.3 ms
+    a substep testing each of its triangles against every face of a spike it was far from)."""
+    for b in range(sim.model.body_count[0]):
+        if sim.model.body_kind[b] != SOFT:
+            lo, hi = vec3(ti.math.inf), vec3(-ti.math.inf)
+            for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
+                lo = ti.min(lo, sim.state.vertex_x[i])
+                hi = ti.max(hi, sim.state.vertex_x[i])
+            sim.solid_lo[b] = lo
+            sim.solid_hi[b] = hi
 
 
 @ti.func
@@ -52,7 +70,8 @@ def add_resting_vertex_rows(sim: ti.template(), rows: ti.template(), total: ti.i
             skin = ti.static(SOFT_BOX_MARGIN) * sim.body_thickness[b_s]
             t_m = sim.vertex_tri[i]
             for b in range(sim.model.body_count[0]):
-                if sim.model.body_kind[b] != SOFT:
+                if (sim.model.body_kind[b] != SOFT and (v >= sim.solid_lo[b] - skin).all()
+                        and (v <= sim.solid_hi[b] + skin).all()):
                     for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                         if sim.model.tri_hidden[t] == 0:
                             io = sim.model.tri_indices[t]
@@ -84,7 +103,8 @@ def add_sharp_edge_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, 
             if cross.norm() > 0.0:
                 n_s = cross.normalized()
                 for b in range(sim.model.body_count[0]):
-                    if sim.model.body_kind[b] != SOFT:
+                    if (sim.model.body_kind[b] != SOFT and (sim.solid_hi[b] >= lo).all()
+                            and (sim.solid_lo[b] <= hi).all()):
                         for t in range(sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]):
                             if sim.tri_sharp_edges[t] != 0 and sim.model.tri_hidden[t] == 0:
                                 n_rows = edge_under_soft_triangle(sim, rows, n_rows, t_s, t, n_s, lo, hi, skin,

@@ -21,6 +21,8 @@ from ..core.model import (MODEL_FIELD_NAMES, SOFT, STATE_FIELD_NAMES, Model, Sta
 _LAYOUT = {
     "tri_lo": ("tris", "vec3"), "tri_hi": ("tris", "vec3"),
     "body_lo": ("bodies", "vec3"), "body_hi": ("bodies", "vec3"),
+    # Each rigid or static body's vertex box in the current substep (soft_rows.solid_boxes).
+    "solid_lo": ("bodies", "vec3"), "solid_hi": ("bodies", "vec3"),
     "body_level": ("bodies", "int"),
     # The last contact row whose moved triangle belongs to each body (-1: none); each
     # row links to the one before it (ContactConstraints.tri), for is_duplicate.
