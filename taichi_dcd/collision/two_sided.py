@@ -60,6 +60,8 @@ def moved_together(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3, g
     the other): they cross when the real ones are closer than the gap."""
     n_a = (a1 - a0).cross(a2 - a0)
     n_b = (b1 - b0).cross(b2 - b0)
-    shift_a = (0.5 * gap / ti.max(n_a.norm(), 1e-300)) * n_a
-    shift_b = (0.5 * gap / ti.max(n_b.norm(), 1e-300)) * n_b
+    len_a, len_b = n_a.norm(), n_b.norm()
+    # A triangle crushed to zero area has no normal to move along: it stays.
+    shift_a = ti.select(len_a > 0.0, 0.5 * gap / ti.select(len_a > 0.0, len_a, 1.0), 0.0) * n_a
+    shift_b = ti.select(len_b > 0.0, 0.5 * gap / ti.select(len_b > 0.0, len_b, 1.0), 0.0) * n_b
     return a0 + shift_a, a1 + shift_a, a2 + shift_a, b0 + shift_b, b1 + shift_b, b2 + shift_b
