@@ -16,7 +16,7 @@ from .contacts import Contacts
 from ..core.geometry import vec3
 from ..core.launch import Launcher
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
-from .two_sided import flipped, moved_together, two_sided_flips
+from .two_sided import faced_pair
 
 
 @ti.kernel
@@ -42,9 +42,9 @@ def _collide_candidates(
     intersecting ones (and with keep_touching those it calls touching, with keep_pressed
     those pressed through each other, with side -1) and returns how many there are (more
     than the capacity on overflow). With two_sided, a triangle with a gap in tri_sheet_gap
-    (m, 0 for one-sided ones) faces the other one of its pair first (two_sided.two_sided_flips;
-    particle_x_prev: the positions at the substep's start), and two such triangles are moved
-    together by the mean of their gaps (two_sided.moved_together)."""
+    (m, 0 for one-sided ones) faces the other one of its pair first, and two such triangles are
+    moved together by the mean of their gaps (two_sided.faced_pair; particle_x_prev: the
+    positions at the substep's start)."""
     contact_count[0] = 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
@@ -55,15 +55,11 @@ def _collide_candidates(
         if ti.static(two_sided):
             cloth_a, cloth_b = tri_sheet_gap[ab[0]] > 0.0, tri_sheet_gap[ab[1]] > 0.0
             if cloth_a or cloth_b:
-                flip_a, flip_b = two_sided_flips(
+                a0, a1, a2, b0, b1, b2 = faced_pair(
                     a0, a1, a2, b0, b1, b2,
                     particle_x_prev[ia[0]], particle_x_prev[ia[1]], particle_x_prev[ia[2]],
-                    particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b)
-                a0, a1, a2 = flipped(a0, a1, a2, flip_a)
-                b0, b1, b2 = flipped(b0, b1, b2, flip_b)
-                if cloth_a and cloth_b:
-                    a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2,
-                                                            0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
+                    particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b,
+                    0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
         hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
         keep = hit
         if ti.static(keep_touching):

@@ -65,3 +65,18 @@ def moved_together(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3, g
     shift_a = ti.select(len_a > 0.0, 0.5 * gap / ti.select(len_a > 0.0, len_a, 1.0), 0.0) * n_a
     shift_b = ti.select(len_b > 0.0, 0.5 * gap / ti.select(len_b > 0.0, len_b, 1.0), 0.0) * n_b
     return a0 + shift_a, a1 + shift_a, a2 + shift_a, b0 + shift_b, b1 + shift_b, b2 + shift_b
+
+
+@ti.func
+def faced_pair(a0: vec3, a1: vec3, a2: vec3, b0: vec3, b1: vec3, b2: vec3,
+               pa0: vec3, pa1: vec3, pa2: vec3, pb0: vec3, pb1: vec3, pb2: vec3,
+               a_two_sided: bool, b_two_sided: bool, gap: float):
+    """The pair's vertices as the narrow phase takes them: a two-sided triangle turned to face
+    the other (two_sided_flips, flipped), two two-sided ones then moved together by `gap` (m,
+    moved_together). Arguments as for two_sided_flips."""
+    flip_a, flip_b = two_sided_flips(a0, a1, a2, b0, b1, b2, pa0, pa1, pa2, pb0, pb1, pb2, a_two_sided, b_two_sided)
+    a0, a1, a2 = flipped(a0, a1, a2, flip_a)
+    b0, b1, b2 = flipped(b0, b1, b2, flip_b)
+    if a_two_sided and b_two_sided:
+        a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, gap)
+    return a0, a1, a2, b0, b1, b2

@@ -4,7 +4,7 @@ the gap two sheets keep between them."""
 
 import taichi as ti
 
-from ..collision.two_sided import flipped, moved_together, two_sided_flips
+from ..collision.two_sided import faced_pair
 from ..core.model import SOFT
 
 vec3 = ti.math.vec3
@@ -42,23 +42,19 @@ def cloth_gap(sim: ti.template(), t_a: ti.i32, t_b: ti.i32) -> float:
 @ti.func
 def pair_vertices(sim: ti.template(), t_a: ti.i32, t_b: ti.i32):
     """The current vertices (a0, a1, a2, b0, b1, b2) of triangles t_a and t_b, a cloth
-    triangle's last two swapped where it faces away from the other (two_sided_flips); two
-    cloth triangles each moved half their gap towards the other (moved_together)."""
+    triangle turned to face the other, two cloth triangles moved together by their gap
+    (collision.two_sided.faced_pair)."""
     ia, ib = sim.model.tri_indices[t_a], sim.model.tri_indices[t_b]
     a0, a1, a2 = sim.state.vertex_x[ia[0]], sim.state.vertex_x[ia[1]], sim.state.vertex_x[ia[2]]
     b0, b1, b2 = sim.state.vertex_x[ib[0]], sim.state.vertex_x[ib[1]], sim.state.vertex_x[ib[2]]
     if ti.static(sim.model.has_cloth):
         cloth_a, cloth_b = is_cloth(sim, t_a), is_cloth(sim, t_b)
         if cloth_a or cloth_b:
-            flip_a, flip_b = two_sided_flips(
+            a0, a1, a2, b0, b1, b2 = faced_pair(
                 a0, a1, a2, b0, b1, b2,
                 sim.state.vertex_x_prev[ia[0]], sim.state.vertex_x_prev[ia[1]], sim.state.vertex_x_prev[ia[2]],
                 sim.state.vertex_x_prev[ib[0]], sim.state.vertex_x_prev[ib[1]], sim.state.vertex_x_prev[ib[2]],
-                cloth_a, cloth_b)
-            a0, a1, a2 = flipped(a0, a1, a2, flip_a)
-            b0, b1, b2 = flipped(b0, b1, b2, flip_b)
-            if cloth_a and cloth_b:
-                a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, cloth_gap(sim, t_a, t_b))
+                cloth_a, cloth_b, cloth_gap(sim, t_a, t_b))
     return a0, a1, a2, b0, b1, b2
 
 
