@@ -29,8 +29,9 @@ class BodySpec:
     """One body before building. vertices (n, 3) m in world space, faces (m, 3) int;
     kind "rigid" | "soft" | "cloth" | "static"; density kg/m³ (a cloth: kg/m² of sheet);
     velocity m/s; force N (constant, at the centre of mass); friction (Coulomb μ, static and
-    dynamic); restitution in [0, 1]; compliance m/N (soft bodies' edges); damping 1/s, the rate at which a soft body's
-    particles lose their velocity relative to the body's rigid motion (0: none); drag 1/s,
+    dynamic); restitution in [0, 1]; compliance m/N (soft bodies' edges); damping 1/s, the
+    rate at which a soft body's particles lose their velocity relative to the body's rigid
+    motion (0: none); drag 1/s,
     the rate at which every point of a moving body loses its velocity (velocity damping,
     standing in for the dissipation that point contacts lack; 0: none); spin_friction m, the
     largest torque about a contact's normal per newton of its normal force (a contact patch's
