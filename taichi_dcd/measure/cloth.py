@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from .penetration import distance_to_surface, surface_samples
-from .self_intersection import PAIR_CHUNK, _box_pairs, crossing_pairs, triangles_cross
+from .self_intersection import PAIR_CHUNK, _box_pairs, triangles_cross
 
 # Sheet samples tested against a solid at once (memory: ~10 doubles per sample and face).
 SAMPLE_CHUNK = 2_000_000
@@ -82,16 +82,6 @@ def sheet_crossings(va: np.ndarray, fa: np.ndarray, vb: np.ndarray, fb: np.ndarr
             count += int(hit.sum())
             deepest = max(deepest, float(poke_depths(ta[i[hit]], tb[j[hit]]).max()))
     return count, deepest
-
-
-def sheet_self_penetration(vertices: np.ndarray, faces: np.ndarray) -> tuple[int, float]:
-    """(crossing pairs, the deepest poke_depths of them in m) of one sheet's own triangles
-    that share no vertex."""
-    pairs = crossing_pairs(vertices, faces)
-    if not len(pairs):
-        return 0, 0.0
-    corners = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
-    return len(pairs), float(poke_depths(corners[pairs[:, 0]], corners[pairs[:, 1]]).max())
 
 
 def cloth_pair_depth(a: trimesh.Trimesh, kind_a: str, b: trimesh.Trimesh, kind_b: str) -> float:

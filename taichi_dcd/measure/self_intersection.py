@@ -145,14 +145,15 @@ def crossing_depths(tri_a: np.ndarray, tri_b: np.ndarray) -> np.ndarray:
     return np.minimum(_depth_behind(a, b), _depth_behind(b, a))
 
 
-def self_penetration(vertices: np.ndarray, faces: np.ndarray) -> tuple[int, float]:
-    """(number of crossing pairs, the deepest of them in m as crossing_depths has it) of one
-    mesh (vertices (n, 3) m, faces (m, 3)): pairs that share no vertex, found without the solver."""
+def self_penetration(vertices: np.ndarray, faces: np.ndarray, depths=None) -> tuple[int, float]:
+    """(number of crossing pairs, the deepest of them in m as `depths` (crossing_depths by
+    default; a sheet's: cloth.poke_depths) has it) of one mesh (vertices (n, 3) m, faces
+    (m, 3)): pairs that share no vertex, found without the solver."""
     pairs = crossing_pairs(vertices, faces)
     if not len(pairs):
         return 0, 0.0
     corners = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
-    return len(pairs), float(crossing_depths(corners[pairs[:, 0]], corners[pairs[:, 1]]).max())
+    return len(pairs), float((depths or crossing_depths)(corners[pairs[:, 0]], corners[pairs[:, 1]]).max())
 
 
 def triangles_cross(tri_a: np.ndarray, tri_b: np.ndarray) -> np.ndarray:

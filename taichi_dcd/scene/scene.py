@@ -17,7 +17,7 @@ from .builder import BodySpec, ModelBuilder
 from .config import SceneConfig, SceneError, read_scene_file
 from ..core.model import RIGID, SOFT, STATIC
 from ..measure.penetration import body_pairs, scene_penetration
-from ..measure.cloth import sheet_self_penetration
+from ..measure.cloth import poke_depths
 from ..measure.self_intersection import self_penetration
 from .shapes import make_shape
 from ..solver.tunnelling import MAX_SUBSTEP_FACTOR, TUNNEL_FRACTION, substeps_for_impacts, substeps_for_motion
@@ -298,8 +298,8 @@ class Scene:
         """Each soft body's name → (pairs of its own triangles that cross, the deepest of them
         in m), measured from its mesh alone (measure.self_intersection.self_penetration)."""
         x = self.vertices() if vertices is None else vertices
-        return {b.name: (sheet_self_penetration if b.kind == "cloth" else self_penetration)(
-                    x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces)
+        return {b.name: self_penetration(x[b.vertex_start:b.vertex_start + b.vertex_count], b.faces,
+                                         poke_depths if b.kind == "cloth" else None)
                 for b in self.model.bodies if b.deformable}
 
     def _world_bodies(self, x: np.ndarray) -> list[tuple[str, str, trimesh.Trimesh]]:
