@@ -168,7 +168,7 @@ class MeshContacts:
         return len(self.depth)
 
 
-def _check_mesh(k: int, mesh) -> tuple[np.ndarray, np.ndarray]:
+def check_mesh(k: int, mesh) -> tuple[np.ndarray, np.ndarray]:
     try:
         vertices, faces = mesh
     except (TypeError, ValueError):
@@ -196,7 +196,7 @@ def find_contacts(meshes, cell_size: float | None = None) -> MeshContacts:
     Runs in the precision chosen at `taichi_dcd.init`. Raises ValueError on bad input.
     """
     runtime.ensure_init()
-    checked = [_check_mesh(k, mesh) for k, mesh in enumerate(meshes)]
+    checked = [check_mesh(k, mesh) for k, mesh in enumerate(meshes)]
     dtype = runtime.real_dtype()
     vert_offset = np.cumsum([0] + [len(v) for v, _ in checked])
     tri_offset = np.cumsum([0] + [len(f) for _, f in checked])

@@ -12,12 +12,13 @@ Taichi version) the bound kernel makes an ordinary call instead.
 
 from __future__ import annotations
 
+import numpy as np
 import taichi as ti
 from taichi.lang import impl
 from taichi.lang.matrix import VectorType
 from taichi.types import ndarray_type, primitive_types
 
-_NDARRAY, _FLOAT, _INT, _VECTOR = 0, 1, 2, 3
+_NDARRAY, _FLOAT, _INT, _VECTOR, _EXTERNAL = 0, 1, 2, 3, 4
 
 
 class BoundKernel:
@@ -25,7 +26,8 @@ class BoundKernel:
 
     kernel: a function decorated with @ti.kernel; args: all of its arguments, in order.
     Ndarray, vector and template arguments stay bound for the life of the object (bind
-    again after reallocating an array); `bound(*scalars)` launches with new values for
+    again after reallocating an array); so does a C-contiguous NumPy array, by its memory:
+    write new values into that same array between launches. `bound(*scalars)` launches with new values for
     the scalar (int or float) arguments, in order, or the bound ones if none are given,
     and returns what the kernel returns. A method of a @ti.data_oriented object is
     accepted but called the ordinary way: launched through a binding, the solver's frame
@@ -54,7 +56,13 @@ class BoundKernel:
             annotation = argument.annotation
             if isinstance(annotation, ti.template):
                 continue
-            if isinstance(annotation, ndarray_type.NdarrayType):
+            if isinstance(annotation, ndarray_type.NdarrayType) and isinstance(value, np.ndarray):
+                if not value.flags.c_contiguous:
+                    return
+                element_dim = getattr(annotation.dtype, "ndim", 0) or 0
+                shape = value.shape[: value.ndim - element_dim]
+                slots.append((slot, _EXTERNAL, (int(value.ctypes.data), value.nbytes, list(shape))))
+            elif isinstance(annotation, ndarray_type.NdarrayType):
                 if value.grad is not None:
                     return
                 slots.append((slot, _NDARRAY, value.arr))
@@ -100,6 +108,8 @@ class BoundKernel:
         for slot, kind, value in self._slots:
             if kind == _NDARRAY:
                 context.set_arg_ndarray((slot,), value)
+            elif kind == _EXTERNAL:
+                context.set_arg_external_array_with_shape((slot,), *value, 0)
             elif kind == _FLOAT:
                 context.set_arg_float((slot,), float(self.args[value]))
             elif kind == _INT:

@@ -1,0 +1,259 @@
+"""Grids built once, in NumPy, over boxes given in their own body's frame.
+
+A rigid body does not change shape, so its triangles' boxes in its own frame, and the
+grids that hold them, are built once and reused by every query (collision/rigid_pipeline.py):
+
+- `LocalGrid`, the broad phase's hierarchical grid (collision/broadphase.py) in a body's
+  frame: each box sits at the smallest level whose cell (h·2^level) is at least its largest
+  extent and is listed in every cell it covers there; the occupied cells, keyed by (tag,
+  cell) with tag = body·LEVELS + level, sit in an open-addressing table, each with its run
+  of box indices;
+- `Occupancy`, a summed-volume table per body of the cells its boxes cover, which answers
+  "does this box come near the body at all" in eight reads.
+
+A box's cells are computed by the same `ti.func`s the query uses (`cell_of`, `bucket_of`),
+so that its cells at build time are its cells at query time to the bit.
+"""
+
+
+import numpy as np
+import taichi as ti
+
+from ..core import runtime
+from .grid_cells import LEVELS, bucket_of, cell_of, level_inv_h
+
+ivec2 = ti.types.vector(2, ti.i32)
+ivec3 = ti.types.vector(3, ti.i32)
+ivec4 = ti.types.vector(4, ti.i32)
+
+
+@ti.kernel
+def _cells_of(box_lo: ti.types.ndarray(ndim=2), box_hi: ti.types.ndarray(ndim=2),
+              level: ti.types.ndarray(dtype=ti.i32, ndim=1), cell_lo: ti.types.ndarray(dtype=ti.i32, ndim=2),
+              cell_hi: ti.types.ndarray(dtype=ti.i32, ndim=2), inv_h0: float):
+    """The cells holding each box's corners at its level."""
+    for k in range(level.shape[0]):
+        inv_h = level_inv_h(inv_h0, level[k])
+        lo = ti.Vector([box_lo[k, 0], box_lo[k, 1], box_lo[k, 2]])
+        hi = ti.Vector([box_hi[k, 0], box_hi[k, 1], box_hi[k, 2]])
+        c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
+        for i in ti.static(range(3)):
+            cell_lo[k, i] = c0[i]
+            cell_hi[k, i] = c1[i]
+
+
+def box_levels(lo: np.ndarray, hi: np.ndarray, cell_size: float) -> np.ndarray:
+    """Level of each box (n, 3): the smallest l with cell_size·2^l at least its largest extent."""
+    extent = (hi - lo).max(axis=1)
+    level = np.zeros(len(lo), dtype=np.int32)
+    size = np.full(len(lo), cell_size)
+    for _ in range(LEVELS - 1):
+        over = extent > size
+        if not over.any():
+            break
+        level[over] += 1
+        size[over] *= 2.0
+    return level
+
+
+class LocalGrid:
+    """A hash grid of boxes (one table over all bodies), built once.
+
+    box_lo, box_hi (n, 3): the boxes, each in its body's frame (scene units); body (n,) int;
+    cell_size: the base cell size h. Each box is entered in every cell it covers at its level
+    (`box_levels`). Holds, as Taichi ndarrays:
+    - `cell_key` (n_slots,) ivec4 (tag, cell x, y, z), tag -1 for an empty slot, and
+      `cell_range` (n_slots,) ivec2: an open-addressing table of the occupied cells (linear
+      probing from `bucket_of`), each with its run [start, end) of `cell_items`;
+    - `cell_items` (n_entries,) i32: the boxes of each cell, by index;
+    - `item_box` (n, 2) vec3 in f32, rounded outwards (a box only grows, so no pair is lost);
+    - `body_levels` (n_bodies,) i32: a bit mask of the levels each body's boxes occupy.
+    """
+
+    def __init__(self, box_lo: np.ndarray, box_hi: np.ndarray, body: np.ndarray, n_bodies: int,
+                 cell_size: float):
+        real = runtime.real_dtype()
+        # Stored in f32 rounded outwards; the cells are those of the stored boxes.
+        lo32 = np.nextafter(np.asarray(box_lo).astype(np.float32), np.float32(-np.inf))
+        hi32 = np.nextafter(np.asarray(box_hi).astype(np.float32), np.float32(np.inf))
+        box_lo = np.ascontiguousarray(lo32, dtype=real)
+        box_hi = np.ascontiguousarray(hi32, dtype=real)
+        body = np.asarray(body, dtype=np.int64)
+        n = len(box_lo)
+        level = box_levels(box_lo, box_hi, cell_size)
+        cell_lo = np.zeros((n, 3), np.int32)
+        cell_hi = np.zeros((n, 3), np.int32)
+        if n:
+            _cells_of(box_lo, box_hi, level, cell_lo, cell_hi, 1.0 / cell_size)
+        span = (cell_hi.astype(np.int64) - cell_lo + 1)
+        count = span.prod(axis=1)
+        item = np.repeat(np.arange(n), count)
+        # Position of each entry among its box's cells, unravelled over the box's span.
+        rank = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        sy, sz = span[item, 1], span[item, 2]
+        offset = np.column_stack([rank // (sy * sz), (rank // sz) % sy, rank % sz])
+        cells = cell_lo[item] + offset
+        tag = body[item] * LEVELS + level[item]
+        order = np.lexsort((item, cells[:, 2], cells[:, 1], cells[:, 0], tag))
+        key = np.column_stack([tag, cells]).astype(np.int32)[order]
+        new = np.ones(len(key), bool)
+        if len(key):
+            new[1:] = np.any(key[1:] != key[:-1], axis=1)
+        first = np.flatnonzero(new)
+        ranges = np.column_stack([first, np.append(first[1:], len(key))]).astype(np.int32)
+        n_slots = 1 << max(1, int(2 * max(len(first), 1) - 1).bit_length())
+        self.cell_key = ti.ndarray(ivec4, shape=n_slots)
+        self.cell_range = ti.ndarray(ivec2, shape=n_slots)
+        if len(first):
+            _insert_cells(key[first], ranges, self.cell_key, self.cell_range)
+        else:
+            self.cell_key.fill(-1)
+        self.entries = len(key)
+        self.cells = len(first)
+        self.cell_items = _ndarray(ti.i32, item[order].astype(np.int32), (max(len(key), 1),))
+        self.item_box = _ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1), (max(n, 1), 2))
+        masks = np.zeros(n_bodies, np.int64)
+        np.bitwise_or.at(masks, body, np.int64(1) << level.astype(np.int64))
+        self.body_levels = _ndarray(ti.i32, masks.astype(np.uint32).view(np.int32), (max(n_bodies, 1),))
+        self.level = level
+
+
+@ti.kernel
+def _insert_cells(key: ti.types.ndarray(dtype=ti.i32, ndim=2), ranges: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  cell_key: ti.types.ndarray(dtype=ivec4, ndim=1), cell_range: ti.types.ndarray(dtype=ivec2, ndim=1)):
+    """Fill the open-addressing cell table: each cell at its bucket or the next free slot."""
+    mask = cell_key.shape[0] - 1
+    for s in range(cell_key.shape[0]):
+        cell_key[s] = ivec4(-1, 0, 0, 0)
+    ti.loop_config(serialize=True)
+    for k in range(key.shape[0]):
+        slot = bucket_of(key[k, 0], ivec3(key[k, 1], key[k, 2], key[k, 3]), mask)
+        while cell_key[slot][0] != -1:
+            slot = (slot + 1) & mask
+        cell_key[slot] = ivec4(key[k, 0], key[k, 1], key[k, 2], key[k, 3])
+        cell_range[slot] = ivec2(ranges[k, 0], ranges[k, 1])
+
+
+@ti.func
+def cell_run(tag: ti.i32, c: ivec3, cell_key: ti.template(), cell_range: ti.template()) -> ivec2:
+    """The run [start, end) of `cell_items` of cell c at tag (body·LEVELS + level), or an
+    empty run if no box covers it."""
+    mask = cell_key.shape[0] - 1
+    slot = bucket_of(tag, c, mask)
+    run = ivec2(0, 0)
+    while cell_key[slot][0] != -1:
+        k = cell_key[slot]
+        if k[0] == tag and k[1] == c[0] and k[2] == c[1] and k[3] == c[2]:
+            run = cell_range[slot]
+            break
+        slot = (slot + 1) & mask
+    return run
+
+
+def _ndarray(dtype, values: np.ndarray, shape: tuple | None = None):
+    """A Taichi ndarray holding `values`; shape (at least one row) if values may be empty."""
+    arr = ti.ndarray(dtype, shape=shape if shape is not None else values.shape)
+    if len(values):
+        if arr.shape == tuple(values.shape[: len(arr.shape)]):
+            arr.from_numpy(values)
+        else:
+            padded = np.zeros(arr.shape + values.shape[len(arr.shape):], values.dtype)
+            padded[: len(values)] = values
+            arr.from_numpy(padded)
+    return arr
+
+
+# A body's occupancy grid has at most this many cells per triangle (and at least
+# OCCUPANCY_MIN_CELLS in all): its cells grow by powers of two until it fits.
+OCCUPANCY_CELLS_PER_TRI = 8
+OCCUPANCY_MIN_CELLS = 4096
+
+
+class Occupancy:
+    """Which cells of each body's frame its boxes cover, as a summed-volume table: whether a
+    box meets any cell covered by the body is then eight reads, whatever the box's size.
+
+    box_lo, box_hi (n, 3), body (n,): boxes in their bodies' frames; cell_size: the smallest
+    cell (scene units). Each box marks the cells it covers and their neighbours (one cell
+    more each way), so that a query rounded differently from the build still finds it.
+    Holds per body, as Taichi ndarrays: `origin` (vec3), `inv_cell` (real), `dims` (ivec3:
+    cells per axis) and `offset` (i32) into `table`, the (dims + 1) table flattened x-major,
+    table[i, j, k] = covered cells in [0, i) × [0, j) × [0, k).
+    """
+
+    def __init__(self, box_lo: np.ndarray, box_hi: np.ndarray, body: np.ndarray, n_bodies: int,
+                 cell_size: float):
+        body = np.asarray(body, dtype=np.int64)
+        origins, inv_cells, dims_all, offsets, tables = [], [], [], [], []
+        offset = 0
+        for k in range(n_bodies):
+            mine = body == k
+            lo, hi = box_lo[mine].astype(np.float64), box_hi[mine].astype(np.float64)
+            if not len(lo):
+                origins.append(np.zeros(3))
+                inv_cells.append(1.0)
+                dims_all.append(np.zeros(3, np.int64))
+                offsets.append(offset)
+                tables.append(np.zeros(1, np.int32))
+                offset += 1
+                continue
+            budget = max(OCCUPANCY_MIN_CELLS, OCCUPANCY_CELLS_PER_TRI * len(lo))
+            size = cell_size
+            while True:
+                origin = lo.min(axis=0) - size
+                dims = np.floor((hi.max(axis=0) - origin) / size).astype(np.int64) + 2
+                if dims.prod() <= budget:
+                    break
+                size *= 2.0
+            c0 = np.clip(np.floor((lo - origin) / size).astype(np.int64) - 1, 0, dims - 1)
+            c1 = np.clip(np.floor((hi - origin) / size).astype(np.int64) + 1, 0, dims - 1) + 1
+            # Box ranges [c0, c1) marked through a difference array, summed along each axis.
+            diff = np.zeros(tuple(dims + 1), np.int32)
+            for corner in range(8):
+                pick = [(corner >> axis) & 1 for axis in range(3)]
+                idx = tuple(np.where(pick[axis], c1[:, axis], c0[:, axis]) for axis in range(3))
+                np.add.at(diff, idx, -1 if sum(pick) % 2 else 1)
+            covered = diff.cumsum(0).cumsum(1).cumsum(2)[:-1, :-1, :-1] > 0
+            table = np.zeros(tuple(dims + 1), np.int32)
+            table[1:, 1:, 1:] = covered.astype(np.int32).cumsum(0).cumsum(1).cumsum(2)
+            origins.append(origin)
+            inv_cells.append(1.0 / size)
+            dims_all.append(dims)
+            offsets.append(offset)
+            tables.append(table.ravel())
+            offset += table.size
+        real = runtime.real_dtype()
+        vec3 = ti.types.vector(3, runtime.real_type())
+        rows = (max(n_bodies, 1),)
+        self.origin = _ndarray(vec3, np.array(origins, real).reshape(-1, 3), rows)
+        self.inv_cell = _ndarray(runtime.real_type(), np.array(inv_cells, real), rows)
+        self.dims = _ndarray(ivec3, np.array(dims_all, np.int32).reshape(-1, 3), rows)
+        self.offset = _ndarray(ti.i32, np.array(offsets, np.int32), rows)
+        flat = np.concatenate(tables) if tables else np.zeros(1, np.int32)
+        self.table = _ndarray(ti.i32, flat)
+        self.cells = int(sum(int(np.prod(d)) for d in dims_all))
+
+
+@ti.func
+def box_occupied(k: ti.i32, lo: ti.template(), hi: ti.template(), origin: ti.template(), inv_cell: ti.template(),
+                 dims: ti.template(), offset: ti.template(), table: ti.template()) -> bool:
+    """Whether the box [lo, hi] (body k's frame) meets a cell body k's boxes cover
+    (`Occupancy`): the summed-volume table over the box's cells, by inclusion-exclusion."""
+    n = dims[k]
+    a = ti.cast(ti.math.clamp(ti.floor((lo - origin[k]) * inv_cell[k]), -1.0, 1e9), ti.i32)
+    b = ti.cast(ti.math.clamp(ti.floor((hi - origin[k]) * inv_cell[k]), -1.0, 1e9), ti.i32)
+    a = ti.max(a, 0)
+    b = ti.min(b, n - 1) + 1
+    found = False
+    if all(a < b):
+        sy, sz = n[1] + 1, n[2] + 1
+        base = offset[k]
+        total = 0
+        for corner in ti.static(range(8)):
+            i = b[0] if corner & 1 else a[0]
+            j = b[1] if corner & 2 else a[1]
+            m = b[2] if corner & 4 else a[2]
+            sign = ti.static(-1 if ((corner & 1) + ((corner >> 1) & 1) + ((corner >> 2) & 1)) % 2 == 0 else 1)
+            total += sign * table[base + (i * sy + j) * sz + m]
+        found = total != 0
+    return found
