@@ -1,22 +1,27 @@
-"""Whole-mesh contact query: our grid + narrow phase against python-fcl, and its scaling.
+"""Whole-mesh contact query: our two pipelines against python-fcl, and their scaling.
 
 Two tori (R = 1, r = 0.35, ~10k triangles each by default) in three placements:
 - links: the second turned 90° about x and moved 1.5 along x, tubes crossing like
   chain links;
 - shift: moved 0.3 along x (large overlap);
 - coax: moved 0.02 along the common axis (near-coincident surfaces).
-For each, the steady-state time of our full contact query (`CollisionPipeline.run`:
-boxes, grid, candidate pairs, unified narrow phase into the contact buffer; built
-once, vertices already in place) against python-fcl's `collide()` between two
-prebuilt BVH models with every contact requested, both on one thread; the median
-of the repeats is reported, the two queries taking turns. Both contact counts are
-printed, and every pair only one side reports is classified in exact rational
-arithmetic (touching, coplanar, crossing, apart).
+Each torus is one rigid body: its mesh in its own frame and a pose. Timed, steady state
+(built once, then queried with the bodies in place), all on one thread by default:
+- "rigid": our `RigidPipeline.run` (grids built once in each body's frame; the poses in,
+  every intersecting pair out, through the unified narrow phase);
+- "world": our `CollisionPipeline.run` on the posed vertices (the grid built at every
+  query, as for deforming bodies);
+- FCL: python-fcl's `collide()` between the two prebuilt BVH models at their poses, every
+  contact requested.
+The median of the repeats is reported, the queries taking turns. Contact counts are
+printed, and every pair only one side reports is classified in exact rational arithmetic
+(touching, coplanar, crossing, apart).
 
-Then the scaling curve: the shift placement from 1k to 1M triangles in total,
-time per query and per triangle, printed and plotted.
+Then the scaling curve: the shift placement from 1k to 1M triangles in total, time per
+query, printed and plotted.
 
-Usage: python benchmarks/broadphase.py [--sections M] [--repeat R] [--max-triangles N] [--out DIR]
+Usage: python benchmarks/broadphase.py [--sections M] [--repeat R] [--max-triangles N]
+       [--threads T] [--out DIR]
 """
 
 import argparse
@@ -32,24 +37,24 @@ from exact_tritri import classify
 
 from taichi_dcd.core import runtime
 from taichi_dcd.collision.pipeline import CollisionPipeline
+from taichi_dcd.collision.rigid_pipeline import RigidPipeline
 
 PLACEMENTS = ("links", "shift", "coax")
-FCL_PAPER_MS = {"links": 1.6, "shift": 8.4, "coax": 12.2}  # FCL's times measured on this kind of machine before this benchmark existed
 
 
-def torus_pair(major_sections: int, placement: str) -> tuple[trimesh.Trimesh, trimesh.Trimesh]:
+def torus_pair(major_sections: int, placement: str) -> tuple[trimesh.Trimesh, np.ndarray]:
+    """The torus (in its own frame) and the 4 x 4 pose of the second one."""
     a = trimesh.creation.torus(1.0, 0.35, major_sections=major_sections, minor_sections=major_sections // 2)
-    b = a.copy()
     if placement == "links":
-        b.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
-        b.apply_translation([1.5, 0.0, 0.0])
+        pose = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+        pose[:3, 3] = [1.5, 0.0, 0.0]
     elif placement == "shift":
-        b.apply_translation([0.3, 0.0, 0.0])
+        pose = trimesh.transformations.translation_matrix([0.3, 0.0, 0.0])
     elif placement == "coax":
-        b.apply_translation([0.0, 0.0, 0.02])
+        pose = trimesh.transformations.translation_matrix([0.0, 0.0, 0.02])
     else:
         raise ValueError(placement)
-    return a, b
+    return a, pose
 
 
 def median_times(fns, repeat: int) -> list[float]:
@@ -66,14 +71,35 @@ def median_times(fns, repeat: int) -> list[float]:
     return [float(np.median(spent)) for spent in times]
 
 
-class Ours:
-    """Our contact query on two meshes, built once."""
+class OursRigid:
+    """Our rigid-body query: each torus's grid built once in its frame, the poses given."""
 
-    def __init__(self, a: trimesh.Trimesh, b: trimesh.Trimesh):
+    def __init__(self, a: trimesh.Trimesh, pose: np.ndarray):
+        self.n_a = len(a.faces)
+        self.pipeline = RigidPipeline([(a.vertices, a.faces), (a.vertices, a.faces)])
+        self.rotation = np.stack([np.eye(3), pose[:3, :3]])
+        self.translation = np.stack([np.zeros(3), pose[:3, 3]])
+
+    def query(self) -> int:
+        return self.pipeline.run(self.rotation, self.translation)
+
+    def candidates(self) -> int:
+        return self.pipeline.candidates()[1]
+
+    def pairs(self) -> set:
+        c = self.pipeline.contacts.to_numpy()
+        return {(int(p[0]), int(p[1]) - self.n_a) for p in c.pair}
+
+
+class OursWorld:
+    """Our per-vertex query on the posed vertices (the grid built at every query)."""
+
+    def __init__(self, a: trimesh.Trimesh, pose: np.ndarray):
+        b = a.copy()
+        b.apply_transform(pose)
         x = np.concatenate([a.vertices, b.vertices])
         faces = np.concatenate([a.faces, b.faces + len(a.vertices)])
         body = np.repeat([0, 1], [len(a.faces), len(b.faces)])
-        self.n_a = len(a.faces)
         self.pipeline = CollisionPipeline(faces, body)
         self.x = ti.ndarray(ti.types.vector(3, ti.f64), shape=len(x))
         self.x.from_numpy(x)
@@ -81,19 +107,17 @@ class Ours:
     def query(self) -> int:
         return self.pipeline.run(self.x)
 
-    def pairs(self) -> set:
-        c = self.pipeline.contacts.to_numpy()
-        return {(int(p[0]), int(p[1]) - self.n_a) for p in c.pair}
-
 
 class FCL:
-    """python-fcl collide() between two prebuilt BVH models, all contacts requested."""
+    """python-fcl collide() between two prebuilt BVH models at their poses, all contacts requested."""
 
-    def __init__(self, a: trimesh.Trimesh, b: trimesh.Trimesh):
+    def __init__(self, a: trimesh.Trimesh, pose: np.ndarray):
         import fcl
 
         self.fcl = fcl
-        self.objects = [fcl.CollisionObject(self._bvh(m), fcl.Transform()) for m in (a, b)]
+        model = self._bvh(a)
+        self.objects = [fcl.CollisionObject(model, fcl.Transform()),
+                        fcl.CollisionObject(self._bvh(a), fcl.Transform(pose[:3, :3], pose[:3, 3]))]
         self.request = fcl.CollisionRequest(num_max_contacts=10**8, enable_contact=True)
         self.result = None
 
@@ -113,11 +137,13 @@ class FCL:
         return {(c.b1, c.b2) for c in self.result.contacts}
 
 
-def classify_pairs(pairs, a, b, limit: int, rng) -> str:
+def classify_pairs(pairs, a, pose, limit: int, rng) -> str:
     pairs = sorted(pairs)
     if not pairs:
         return "none"
     sample = pairs if len(pairs) <= limit else [pairs[i] for i in rng.choice(len(pairs), limit, replace=False)]
+    b = a.copy()
+    b.apply_transform(pose)
     ta, tb = a.vertices[a.faces], b.vertices[b.faces]
     counts = Counter(classify(ta[i], tb[j]) for i, j in sample)
     note = "" if len(sample) == len(pairs) else f" (of a sample of {len(sample)})"
@@ -136,57 +162,53 @@ def placements_table(sections: int, repeat: int, fcl_ok: bool) -> None:
     rng = np.random.default_rng(0)
     rows = []
     for placement in PLACEMENTS:
-        a, b = torus_pair(sections, placement)
-        ours = Ours(a, b)
-        theirs = FCL(a, b) if fcl_ok else None
-        t_ours, t_fcl = median_times([ours.query, theirs.query], repeat) if fcl_ok else (
-            median_times([ours.query], repeat)[0], None)
-        n_ours = ours.query()
-        line = [placement, len(a.faces) + len(b.faces), t_ours, n_ours, ours.pipeline.grid.n_pairs]
+        a, pose = torus_pair(sections, placement)
+        rigid, world = OursRigid(a, pose), OursWorld(a, pose)
+        fns = [rigid.query, world.query]
         if fcl_ok:
-            n_fcl = theirs.query()
-            line += [t_fcl, n_fcl]
-            only_fcl = theirs.pairs() - ours.pairs()
-            only_ours = ours.pairs() - theirs.pairs()
+            theirs = FCL(a, pose)
+            fns.append(theirs.query)
+        times = median_times(fns, repeat) + ([] if fcl_ok else [float("nan")])
+        n_rigid, n_world = rigid.query(), world.query()
+        assert n_rigid == n_world, f"{placement}: the rigid and world pipelines disagree ({n_rigid} vs {n_world})"
+        n_fcl = theirs.query() if fcl_ok else -1
+        if fcl_ok:
+            only_fcl = theirs.pairs() - rigid.pairs()
+            only_ours = rigid.pairs() - theirs.pairs()
             print(f"  {placement}: pairs only FCL reports: {len(only_fcl)} "
-                  f"[exact: {classify_pairs(only_fcl, a, b, 300, rng)}]; "
-                  f"only we report: {len(only_ours)} [exact: {classify_pairs(only_ours, a, b, 300, rng)}]")
-        rows.append(line)
+                  f"[exact: {classify_pairs(only_fcl, a, pose, 300, rng)}]; "
+                  f"only we report: {len(only_ours)} [exact: {classify_pairs(only_ours, a, pose, 300, rng)}]")
+        rows.append((placement, 2 * len(a.faces), *times, n_rigid, n_fcl, rigid.candidates()))
 
     print()
-    print(f"{'placement':10s} {'triangles':>9s} {'ours ms':>8s} {'FCL ms':>8s} {'FCL/ours':>8s} "
-          f"{'contacts ours':>13s} {'contacts FCL':>12s} {'candidates':>10s}  (FCL measured earlier)")
-    for line in rows:
-        placement, n_tris, t_ours, n_ours, n_cand = line[:5]
-        if fcl_ok:
-            t_fcl, n_fcl = line[5:]
-            fcl_cols = f"{1e3 * t_fcl:8.2f} {t_fcl / t_ours:8.2f}"
-            n_fcl_col = f"{n_fcl:12d}"
-        else:
-            fcl_cols, n_fcl_col = f"{'-':>8s} {'-':>8s}", f"{'-':>12s}"
-        print(f"{placement:10s} {n_tris:9d} {1e3 * t_ours:8.2f} {fcl_cols} {n_ours:13d} {n_fcl_col} {n_cand:10d}"
-              f"  ({FCL_PAPER_MS[placement]} ms)")
+    print(f"{'placement':10s} {'triangles':>9s} {'rigid ms':>9s} {'world ms':>9s} {'FCL ms':>8s} "
+          f"{'ours/FCL':>8s} {'contacts ours':>13s} {'contacts FCL':>12s} {'candidates':>10s}")
+    for placement, n_tris, t_rigid, t_world, t_fcl, n_ours, n_fcl, n_cand in rows:
+        print(f"{placement:10s} {n_tris:9d} {1e3 * t_rigid:9.2f} {1e3 * t_world:9.2f} {1e3 * t_fcl:8.2f} "
+              f"{t_rigid / t_fcl:8.2f} {n_ours:13d} {n_fcl:12d} {n_cand:10d}")
 
 
 def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None:
     targets = [t for t in (1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_000) if t <= max_triangles]
     rows = []
     print()
-    print(f"scaling, shift placement: {'triangles':>9s} {'ours ms':>9s} {'ns/tri':>7s} {'FCL ms':>9s} {'contacts':>9s}")
+    print(f"scaling, shift placement: {'triangles':>9s} {'rigid ms':>9s} {'world ms':>9s} {'FCL ms':>9s} "
+          f"{'ours/FCL':>8s} {'contacts':>9s} {'build s':>7s}")
     for target in targets:
         # Two tori of M × M/2 quads, 2 triangles each: 2·M² triangles in all.
         sections = max(8, int(round(np.sqrt(target / 2))))
-        a, b = torus_pair(sections, "shift")
-        n_tris = len(a.faces) + len(b.faces)
-        ours = Ours(a, b)
+        a, pose = torus_pair(sections, "shift")
+        n_tris = 2 * len(a.faces)
+        start = time.perf_counter()
+        rigid = OursRigid(a, pose)
+        build = time.perf_counter() - start
+        world = OursWorld(a, pose)
         reps = max(3, min(repeat, int(2e6 // n_tris)))
-        if fcl_ok:
-            t_ours, t_fcl = median_times([ours.query, FCL(a, b).query], reps)
-        else:
-            t_ours, t_fcl = median_times([ours.query], reps)[0], float("nan")
-        rows.append((n_tris, t_ours, t_fcl))
-        print(f"{'':26s} {n_tris:9d} {1e3 * t_ours:9.2f} {1e9 * t_ours / n_tris:7.1f} {1e3 * t_fcl:9.2f} "
-              f"{ours.query():9d}", flush=True)
+        fns = [rigid.query, world.query] + ([FCL(a, pose).query] if fcl_ok else [])
+        times = median_times(fns, reps) + ([] if fcl_ok else [float("nan")])
+        rows.append((n_tris, *times))
+        print(f"{'':26s} {n_tris:9d} {1e3 * times[0]:9.2f} {1e3 * times[1]:9.2f} {1e3 * times[2]:9.2f} "
+              f"{times[0] / times[2]:8.2f} {rigid.query():9d} {build:7.2f}", flush=True)
     try:
         import matplotlib
 
@@ -195,14 +217,15 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None
     except ImportError:
         print("(matplotlib not installed: no plot; pip install -e .[bench])")
         return
-    n, t_o, t_f = (np.array(col) for col in zip(*rows))
+    n, t_r, t_w, t_f = (np.array(col) for col in zip(*rows))
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    ax.loglog(n, 1e3 * t_o, "o-", label="taichi_dcd grid + unified narrow phase")
+    ax.loglog(n, 1e3 * t_r, "o-", label="taichi_dcd rigid (grids built once per body)")
+    ax.loglog(n, 1e3 * t_w, "^-", label="taichi_dcd world (grid built per query)")
     if fcl_ok:
         ax.loglog(n, 1e3 * t_f, "s--", label="python-fcl collide (BVH, all contacts)")
-    ax.loglog(n, 1e3 * t_o[-1] * n / n[-1], ":", color="gray", label="linear")
+    ax.loglog(n, 1e3 * t_w[-1] * n / n[-1], ":", color="gray", label="linear")
     ax.set_xlabel("triangles (two tori, shifted 0.3)")
-    ax.set_ylabel("time per contact query [ms], one thread")
+    ax.set_ylabel("time per contact query [ms]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -210,6 +233,32 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None
     path = os.path.join(out_dir, "broadphase_scaling.png")
     fig.savefig(path, dpi=120)
     print(f"plot: {path}")
+
+
+def time_rigid(sections: int, repeat: int) -> float:
+    """Median ms of the rigid query, shift placement (run in a process of its own thread count)."""
+    a, pose = torus_pair(sections, "shift")
+    rigid = OursRigid(a, pose)
+    return 1e3 * median_times([rigid.query], repeat)[0]
+
+
+def thread_speedup(sections: int, repeat: int, rounds: int) -> None:
+    """The rigid query on 1 and on 2 threads, each in a fresh process (Taichi's thread count is
+    fixed per process), the two taking turns `rounds` times."""
+    import subprocess
+    import sys
+
+    times = {1: [], 2: []}
+    for _ in range(rounds):
+        for threads in (1, 2):
+            out = subprocess.run([sys.executable, __file__, "--time-rigid", str(sections), "--threads", str(threads),
+                                  "--repeat", str(repeat)], capture_output=True, text=True, check=True).stdout
+            times[threads].append(float(out.strip().splitlines()[-1]))
+    one, two = min(times[1]), min(times[2])
+    print()
+    print(f"threads, shift placement, {4 * sections * (sections // 2)} triangles, rigid query, best of {rounds} "
+          f"processes each: 1 thread {one:.2f} ms, 2 threads {two:.2f} ms, speedup {one / two:.2f}x "
+          f"(all: 1 thread {', '.join(f'{t:.1f}' for t in times[1])}; 2 threads {', '.join(f'{t:.1f}' for t in times[2])})")
 
 
 def main() -> None:
@@ -221,9 +270,16 @@ def main() -> None:
     parser.add_argument("--no-scaling", action="store_true", help="skip the scaling curve")
     parser.add_argument("--threads", type=int, default=1, help="CPU threads for our kernels (FCL uses one)")
     parser.add_argument("--out", default="outputs/benchmarks", help="where the plot goes")
+    parser.add_argument("--speedup-sections", type=int, default=320,
+                        help="major sections of the tori for the 1-against-2-threads comparison (320: 204,800 "
+                             "triangles; 0 skips it)")
+    parser.add_argument("--time-rigid", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
 
     runtime.init(precision="f64", cpu_threads=args.threads)
+    if args.time_rigid:
+        print(time_rigid(args.time_rigid, args.repeat))
+        return
     print(machine_line())
     fcl_ok = have_fcl()
     if not fcl_ok:
@@ -232,6 +288,8 @@ def main() -> None:
     placements_table(args.sections, args.repeat, fcl_ok)
     if not args.no_scaling:
         scaling(args.max_triangles, args.repeat, fcl_ok, args.out)
+    if args.speedup_sections:
+        thread_speedup(args.speedup_sections, args.repeat, rounds=3)
 
 
 if __name__ == "__main__":

@@ -56,18 +56,33 @@ def box_levels(lo: np.ndarray, hi: np.ndarray, cell_size: float) -> np.ndarray:
     return level
 
 
-class LocalGrid:
-    """A hash grid of boxes (one table over all bodies), built once.
+# A body's dense grid has at most this many cells per triangle (and at least
+# DENSE_MIN_CELLS in all): its level rises until it fits.
+DENSE_CELLS_PER_TRI = 8
+DENSE_MIN_CELLS = 4096
 
-    box_lo, box_hi (n, 3): the boxes, each in its body's frame (scene units); body (n,) int;
-    cell_size: the base cell size h. Each box is entered in every cell it covers at its level
-    (`box_levels`). Holds, as Taichi ndarrays:
-    - `cell_key` (n_slots,) ivec4 (tag, cell x, y, z), tag -1 for an empty slot, and
-      `cell_range` (n_slots,) ivec2: an open-addressing table of the occupied cells (linear
-      probing from `bucket_of`), each with its run [start, end) of `cell_items`;
+
+class LocalGrid:
+    """A hierarchical grid of boxes over all bodies, each body's in its own frame, built once.
+
+    box_lo, box_hi (n, 3): the boxes (scene units); body (n,) int; cell_size: the base cell
+    size h. Each box takes the smallest level whose cells are at least its largest extent
+    (`box_levels`), raised to its body's dense level, and is listed in every cell it covers
+    at that level. A body's dense level is the lowest at which a dense array of cells over
+    its box has at most DENSE_CELLS_PER_TRI cells per triangle: its boxes at that level (most
+    of them) are found by index, in memory laid out as space is; boxes at higher levels
+    (triangles much larger than the rest) sit in a hash table of cells. Holds, as Taichi
+    ndarrays:
+    - `dense_origin` (n_bodies,) ivec4: the dense grid's first cell and its level;
+      `dense_dims` (n_bodies,) ivec4: its cells per axis and the offset of its first cell
+      in `dense_start`, where cell i's run of `cell_items` is [dense_start[i], dense_start[i + 1]);
+    - `cell_key` (n_slots,) ivec4 (tag, cell x, y, z), tag = body·LEVELS + level, -1 for an
+      empty slot, and `cell_range` (n_slots,) ivec2: the hashed cells (linear probing from
+      `bucket_of`), each with its run of `cell_items`;
     - `cell_items` (n_entries,) i32: the boxes of each cell, by index;
     - `item_box` (n, 2) vec3 in f32, rounded outwards (a box only grows, so no pair is lost);
-    - `body_levels` (n_bodies,) i32: a bit mask of the levels each body's boxes occupy.
+    - `body_levels` (n_bodies,) i32: a bit mask of the levels each body's boxes occupy;
+    and `level` (n,) as a NumPy array, each box's level.
     """
 
     def __init__(self, box_lo: np.ndarray, box_hi: np.ndarray, body: np.ndarray, n_bodies: int,
@@ -81,6 +96,31 @@ class LocalGrid:
         body = np.asarray(body, dtype=np.int64)
         n = len(box_lo)
         level = box_levels(box_lo, box_hi, cell_size)
+        dense_origin = np.zeros((max(n_bodies, 1), 4), np.int64)
+        dense_dims = np.zeros((max(n_bodies, 1), 4), np.int64)
+        total = 0
+        for k in range(n_bodies):
+            mine = body == k
+            if not mine.any():
+                dense_origin[k, 3] = LEVELS  # no level: every lookup goes to the hash table
+                continue
+            lo, hi = box_lo[mine].min(axis=0).astype(np.float64), box_hi[mine].max(axis=0).astype(np.float64)
+            budget = max(DENSE_MIN_CELLS, DENSE_CELLS_PER_TRI * int(mine.sum()))
+            dense = int(level[mine].min())
+            while True:
+                size = cell_size * 2.0 ** dense
+                # One cell more each way than the box needs: the kernel's rounding may differ.
+                first = np.floor(lo / size).astype(np.int64) - 1
+                dims = np.floor(hi / size).astype(np.int64) + 2 - first
+                if dims.prod() <= budget or dense == LEVELS - 1:
+                    break
+                dense += 1
+            dense_origin[k] = [*first, dense]
+            dense_dims[k] = [*dims, total]
+            total += int(dims.prod())
+            level[mine] = np.maximum(level[mine], dense)
+        if total >= 2**31 - 1:
+            raise ValueError("the bodies' dense grids need more than 2^31 cells; give a larger cell_size")
         cell_lo = np.zeros((n, 3), np.int32)
         cell_hi = np.zeros((n, 3), np.int32)
         if n:
@@ -93,14 +133,30 @@ class LocalGrid:
         sy, sz = span[item, 1], span[item, 2]
         offset = np.column_stack([rank // (sy * sz), (rank // sz) % sy, rank % sz])
         cells = cell_lo[item] + offset
-        tag = body[item] * LEVELS + level[item]
-        order = np.lexsort((item, cells[:, 2], cells[:, 1], cells[:, 0], tag))
-        key = np.column_stack([tag, cells]).astype(np.int32)[order]
+        entry_body = body[item]
+        in_dense = level[item] == dense_origin[entry_body, 3]
+
+        # Dense entries, ordered by their cell's index.
+        rel = cells[in_dense] - dense_origin[entry_body[in_dense], :3]
+        dims = dense_dims[entry_body[in_dense]]
+        if np.any(rel < 0) or np.any(rel >= dims[:, :3]):
+            raise AssertionError("a box's cells fall outside its body's dense grid")
+        index = dims[:, 3] + (rel[:, 0] * dims[:, 1] + rel[:, 1]) * dims[:, 2] + rel[:, 2]
+        dense_order = np.lexsort((item[in_dense], index))
+        dense_items = item[in_dense][dense_order]
+        dense_start = np.searchsorted(index[dense_order], np.arange(total + 1)).astype(np.int32)
+
+        # Hashed entries, grouped by cell, after the dense ones in cell_items.
+        h_item, h_cells = item[~in_dense], cells[~in_dense]
+        tag = entry_body[~in_dense] * LEVELS + level[h_item]
+        order = np.lexsort((h_item, h_cells[:, 2], h_cells[:, 1], h_cells[:, 0], tag))
+        key = np.column_stack([tag, h_cells]).astype(np.int32)[order]
         new = np.ones(len(key), bool)
         if len(key):
             new[1:] = np.any(key[1:] != key[:-1], axis=1)
         first = np.flatnonzero(new)
-        ranges = np.column_stack([first, np.append(first[1:], len(key))]).astype(np.int32)
+        ends = np.append(first[1:], len(key)) if len(first) else first
+        ranges = (np.column_stack([first, ends]) + len(dense_items)).astype(np.int32)
         n_slots = 1 << max(1, int(2 * max(len(first), 1) - 1).bit_length())
         self.cell_key = ti.ndarray(ivec4, shape=n_slots)
         self.cell_range = ti.ndarray(ivec2, shape=n_slots)
@@ -108,14 +164,23 @@ class LocalGrid:
             _insert_cells(key[first], ranges, self.cell_key, self.cell_range)
         else:
             self.cell_key.fill(-1)
-        self.entries = len(key)
-        self.cells = len(first)
-        self.cell_items = _ndarray(ti.i32, item[order].astype(np.int32), (max(len(key), 1),))
+        all_items = np.concatenate([dense_items, h_item[order]]).astype(np.int32)
+        self.entries = len(all_items)
+        self.hashed_cells = len(first)
+        self.dense_cells = total
+        self.cell_items = _ndarray(ti.i32, all_items, (max(len(all_items), 1),))
+        self.dense_start = _ndarray(ti.i32, dense_start)
+        self.dense_origin = _ndarray(ivec4, dense_origin.astype(np.int32), (len(dense_origin),))
+        self.dense_dims = _ndarray(ivec4, dense_dims.astype(np.int32), (len(dense_dims),))
         self.item_box = _ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1), (max(n, 1), 2))
         masks = np.zeros(n_bodies, np.int64)
         np.bitwise_or.at(masks, body, np.int64(1) << level.astype(np.int64))
         self.body_levels = _ndarray(ti.i32, masks.astype(np.uint32).view(np.int32), (max(n_bodies, 1),))
         self.level = level
+
+    def arrays(self) -> tuple:
+        """The arrays `cell_run` reads, in its order."""
+        return (self.dense_origin, self.dense_dims, self.dense_start, self.cell_key, self.cell_range)
 
 
 @ti.kernel
@@ -135,9 +200,9 @@ def _insert_cells(key: ti.types.ndarray(dtype=ti.i32, ndim=2), ranges: ti.types.
 
 
 @ti.func
-def cell_run(tag: ti.i32, c: ivec3, cell_key: ti.template(), cell_range: ti.template()) -> ivec2:
-    """The run [start, end) of `cell_items` of cell c at tag (body·LEVELS + level), or an
-    empty run if no box covers it."""
+def hashed_run(tag: ti.i32, c: ivec3, cell_key: ti.template(), cell_range: ti.template()) -> ivec2:
+    """The run [start, end) of `cell_items` of hashed cell c at tag (body·LEVELS + level), or
+    an empty run if no box covers it."""
     mask = cell_key.shape[0] - 1
     slot = bucket_of(tag, c, mask)
     run = ivec2(0, 0)
@@ -147,6 +212,25 @@ def cell_run(tag: ti.i32, c: ivec3, cell_key: ti.template(), cell_range: ti.temp
             run = cell_range[slot]
             break
         slot = (slot + 1) & mask
+    return run
+
+
+@ti.func
+def cell_run(body: ti.i32, level: ti.i32, c: ivec3, grid: ti.template()) -> ivec2:
+    """The run [start, end) of `cell_items` of cell c at a level of a body's grid (`LocalGrid`;
+    grid: its `arrays()`), from the dense array at the body's dense level, else from the hash
+    table; an empty run if no box covers the cell."""
+    dense_origin, dense_dims, dense_start, cell_key, cell_range = ti.static(grid)
+    origin = dense_origin[body]
+    run = ivec2(0, 0)
+    if level == origin[3]:
+        dims = dense_dims[body]
+        r = c - ivec3(origin[0], origin[1], origin[2])
+        if r[0] >= 0 and r[1] >= 0 and r[2] >= 0 and r[0] < dims[0] and r[1] < dims[1] and r[2] < dims[2]:
+            i = dims[3] + (r[0] * dims[1] + r[1]) * dims[2] + r[2]
+            run = ivec2(dense_start[i], dense_start[i + 1])
+    else:
+        run = hashed_run(body * LEVELS + level, c, cell_key, cell_range)
     return run
 
 

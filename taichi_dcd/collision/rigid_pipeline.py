@@ -36,6 +36,7 @@ from .narrowphase import collide_triangle_pair
 from .pipeline import check_mesh
 
 ivec3 = ti.types.vector(3, ti.i32)
+ivec4 = ti.types.vector(4, ti.i32)
 ivec5 = ti.types.vector(5, ti.i32)
 mat3 = ti.math.mat3
 # Clusters are the cells of this level of the base grid (2 base cells wide): smaller ones
@@ -58,9 +59,8 @@ def pose_of(poses: ti.template(), k: ti.i32):
 
 @ti.func
 def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round_pad: float, levels: ti.i32,
-                vert_local: ti.template(), cell_key: ti.template(), cell_range: ti.template(),
-                cell_items: ti.template(), item_box: ti.template(), occ_origin: ti.template(),
-                occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
+                vert_local: ti.template(), grid: ti.template(), cell_items: ti.template(), item_box: ti.template(),
+                occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
                 occ_table: ti.template(), pairs: ti.template(), counts: ti.template(), inv_h0: float):
     """Step 2 for triangle a of body Q = info[0] (vertex indices ia): its box in T's frame
     (rot, shift; padded by round_pad and BOX_SLACK), and T's triangles in the cells it
@@ -78,11 +78,10 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
             if (levels >> level) & 1:
                 inv_h = level_inv_h(inv_h0, level)
                 c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
-                tag = body_t * LEVELS + level
                 for x in range(c0[0], c1[0] + 1):
                     for y in range(c0[1], c1[1] + 1):
                         for z in range(c0[2], c1[2] + 1):
-                            run = cell_run(tag, ivec3(x, y, z), cell_key, cell_range)
+                            run = cell_run(body_t, level, ivec3(x, y, z), grid)
                             for f in range(run[0], run[1]):
                                 b = cell_items[f]
                                 lo_b = ti.cast(item_box[b, 0], float)
@@ -107,7 +106,10 @@ def _rigid_query(
     cluster_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
     cluster_box: ti.types.ndarray(dtype=vec3, ndim=2),
     cluster_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    cell_key: ti.types.ndarray(dtype=ti.types.vector(4, ti.i32), ndim=1),
+    dense_origin: ti.types.ndarray(dtype=ivec4, ndim=1),
+    dense_dims: ti.types.ndarray(dtype=ivec4, ndim=1),
+    dense_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    cell_key: ti.types.ndarray(dtype=ivec4, ndim=1),
     cell_range: ti.types.ndarray(dtype=ivec2, ndim=1),
     cell_items: ti.types.ndarray(dtype=ti.i32, ndim=1),
     item_box: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2),
@@ -212,9 +214,9 @@ def _rigid_query(
         if first_level < LEVELS:
             levels = (fine_levels[body_t] >> first_level) << first_level
         if levels != 0:
-            query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, cell_key, cell_range,
-                        cell_items, item_box, occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table, pairs,
-                        counts, inv_h0)
+            query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local,
+                        ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)), cell_items, item_box,
+                        occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, counts, inv_h0)
     n_pairs = counts[N_PAIRS] if n_query > 0 and counts[N_PAIRS] <= pairs.shape[0] else 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
@@ -353,7 +355,7 @@ class RigidPipeline:
             n = self._launch(_rigid_query, self.poses, self.body_box, self.body_reach, self.body_clusters,
                              self.vert_local, self.tri, self.cluster_tris, self.cluster_start, self.cluster_box,
                              self.cluster_level,
-                             self.grid.cell_key, self.grid.cell_range, self.grid.cell_items, self.grid.item_box,
+                             *self.grid.arrays(), self.grid.cell_items, self.grid.item_box,
                              self.grid.body_levels, self.occupancy.origin, self.occupancy.inv_cell,
                              self.occupancy.dims, self.occupancy.offset, self.occupancy.table, self.world_box,
                              self.dir_info, self.dir_rot, self.dir_shift, self.dir_pad, self.query, self.pairs,

@@ -79,11 +79,22 @@ def test_vector_results_and_the_plain_fallback(f64):
     bound = BoundKernel(_vector_result, x)
     assert bound._fast
     np.testing.assert_allclose(bound().to_numpy(), [2.0, 4.0, 6.0])
-    # Arguments the fast path does not know (here a numpy array for an ndarray
-    # parameter) make an ordinary call.
-    plain = BoundKernel(_vector_result, np.array([[1.0, 2.0, 3.0]]))
+    # Arguments the fast path does not know (here a numpy array in Fortran order, which
+    # Taichi copies at each call) make an ordinary call.
+    fortran = np.asfortranarray([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    plain = BoundKernel(_vector_result, fortran)
     assert not plain._fast
     np.testing.assert_allclose(plain().to_numpy(), [2.0, 4.0, 6.0])
+
+
+def test_a_numpy_array_is_bound_by_its_memory(f64):
+    values = np.array([[1.0, 2.0, 3.0]])
+    bound = BoundKernel(_vector_result, values)
+    assert bound._fast
+    np.testing.assert_allclose(bound().to_numpy(), [2.0, 4.0, 6.0])
+    # New values written into the same array reach the next launch.
+    values[0] = [-1.0, 0.5, 10.0]
+    np.testing.assert_allclose(bound().to_numpy(), [-2.0, 1.0, 20.0])
 
 
 def test_bounds_are_still_checked_in_debug_mode(f64):
