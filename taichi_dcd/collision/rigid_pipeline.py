@@ -44,6 +44,11 @@ mat3 = ti.math.mat3
 CLUSTER_LEVEL = 1
 # The change of frame's rounding, in ulps of the largest coordinate involved.
 FRAME_ROUND_ULPS = 16.0
+# Step 2 visits the kept triangles in chunks of this many, in a strided order of chunks
+# (a prime stride, or another where the first divides the chunks' number).
+SPREAD_CHUNK = 16
+SPREAD_STRIDE = 7919
+SPREAD_STRIDE_ALT = 7927
 # counts[]: directions, items (clusters to test), kept triangles, candidate pairs, contacts.
 N_DIR, N_ITEMS, N_KEPT, N_PAIRS, N_CONTACTS = 0, 1, 2, 3, 4
 
@@ -203,8 +208,16 @@ def _rigid_query(
                 for i in range(end - first):
                     query[slot + i] = ivec2(d, cluster_tris[first + i])
     n_query = counts[N_KEPT] if counts[N_KEPT] <= query.shape[0] else 0
+    n_chunks = (n_query + SPREAD_CHUNK - 1) // SPREAD_CHUNK
+    stride = SPREAD_STRIDE if n_chunks % SPREAD_STRIDE != 0 else SPREAD_STRIDE_ALT
     ti.loop_config(serialize=serial)
-    for s in range(n_query):
+    for k in range(n_chunks * SPREAD_CHUNK):
+        # Taichi gives each CPU thread one contiguous block of a loop's iterations, and the
+        # kept triangles are in space order, their work bunched where the bodies meet: the
+        # loop visits chunks of them in a strided order, so that every block gets its share.
+        s = (k // SPREAD_CHUNK * stride) % n_chunks * SPREAD_CHUNK + k % SPREAD_CHUNK
+        if s >= n_query:
+            continue
         d, a = query[s][0], query[s][1]
         info = dir_info[d]
         body_t = info[1]
