@@ -255,10 +255,13 @@ def thread_speedup(sections: int, repeat: int, rounds: int) -> None:
                                   "--repeat", str(repeat)], capture_output=True, text=True, check=True).stdout
             times[threads].append(float(out.strip().splitlines()[-1]))
     one, two = min(times[1]), min(times[2])
+    mid_one, mid_two = float(np.median(times[1])), float(np.median(times[2]))
     print()
-    print(f"threads, shift placement, {4 * sections * (sections // 2)} triangles, rigid query, best of {rounds} "
-          f"processes each: 1 thread {one:.2f} ms, 2 threads {two:.2f} ms, speedup {one / two:.2f}x "
-          f"(all: 1 thread {', '.join(f'{t:.1f}' for t in times[1])}; 2 threads {', '.join(f'{t:.1f}' for t in times[2])})")
+    print(f"threads, shift placement, {4 * sections * (sections // 2)} triangles, rigid query, {rounds} processes "
+          f"each, taking turns: best 1 thread {one:.2f} ms, 2 threads {two:.2f} ms, speedup {one / two:.2f}x; "
+          f"median {mid_one:.2f} against {mid_two:.2f} ms, {mid_one / mid_two:.2f}x")
+    print(f"  all, ms: 1 thread {', '.join(f'{t:.1f}' for t in times[1])}; "
+          f"2 threads {', '.join(f'{t:.1f}' for t in times[2])}")
 
 
 def main() -> None:
@@ -289,7 +292,7 @@ def main() -> None:
     if not args.no_scaling:
         scaling(args.max_triangles, args.repeat, fcl_ok, args.out)
     if args.speedup_sections:
-        thread_speedup(args.speedup_sections, args.repeat, rounds=3)
+        thread_speedup(args.speedup_sections, args.repeat, rounds=5)
 
 
 if __name__ == "__main__":

@@ -80,7 +80,8 @@ class LocalGrid:
       empty slot, and `cell_range` (n_slots,) ivec2: the hashed cells (linear probing from
       `bucket_of`), each with its run of `cell_items`;
     - `cell_items` (n_entries,) i32: the boxes of each cell, by index;
-    - `item_box` (n, 2) vec3 in f32, rounded outwards (a box only grows, so no pair is lost);
+    - `entry_box` (n_entries, 2) vec3 in f32: each entry's box, rounded outwards (a box only
+      grows, so no pair is lost), beside its entry so that a cell's boxes are read in a row;
     - `body_levels` (n_bodies,) i32: a bit mask of the levels each body's boxes occupy;
     and `level` (n,) as a NumPy array, each box's level.
     """
@@ -172,7 +173,8 @@ class LocalGrid:
         self.dense_start = _ndarray(ti.i32, dense_start)
         self.dense_origin = _ndarray(ivec4, dense_origin.astype(np.int32), (len(dense_origin),))
         self.dense_dims = _ndarray(ivec4, dense_dims.astype(np.int32), (len(dense_dims),))
-        self.item_box = _ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1), (max(n, 1), 2))
+        self.entry_box = _ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1)[all_items],
+                                  (max(len(all_items), 1), 2))
         masks = np.zeros(n_bodies, np.int64)
         np.bitwise_or.at(masks, body, np.int64(1) << level.astype(np.int64))
         self.body_levels = _ndarray(ti.i32, masks.astype(np.uint32).view(np.int32), (max(n_bodies, 1),))

@@ -64,7 +64,7 @@ def pose_of(poses: ti.template(), k: ti.i32):
 
 @ti.func
 def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round_pad: float, levels: ti.i32,
-                vert_local: ti.template(), grid: ti.template(), cell_items: ti.template(), item_box: ti.template(),
+                vert_local: ti.template(), grid: ti.template(), cell_items: ti.template(), entry_box: ti.template(),
                 occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
                 occ_table: ti.template(), pairs: ti.template(), counts: ti.template(), inv_h0: float):
     """Step 2 for triangle a of body Q = info[0] (vertex indices ia): its box in T's frame
@@ -88,12 +88,12 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                         for z in range(c0[2], c1[2] + 1):
                             run = cell_run(body_t, level, ivec3(x, y, z), grid)
                             for f in range(run[0], run[1]):
-                                b = cell_items[f]
-                                lo_b = ti.cast(item_box[b, 0], float)
-                                if boxes_overlap(lo, hi, lo_b, ti.cast(item_box[b, 1], float)):
+                                lo_b = ti.cast(entry_box[f, 0], float)
+                                if boxes_overlap(lo, hi, lo_b, ti.cast(entry_box[f, 1], float)):
                                     # Reported only in the cell holding the intersection's lower corner.
                                     corner = ti.max(c0, cell_of(lo_b, inv_h))
                                     if corner[0] == x and corner[1] == y and corner[2] == z:
+                                        b = cell_items[f]
                                         slot = ti.atomic_add(counts[N_PAIRS], 1)
                                         if slot < pairs.shape[0]:
                                             pairs[slot] = ivec2(a, b) if info[0] < body_t else ivec2(b, a)
@@ -117,7 +117,7 @@ def _rigid_query(
     cell_key: ti.types.ndarray(dtype=ivec4, ndim=1),
     cell_range: ti.types.ndarray(dtype=ivec2, ndim=1),
     cell_items: ti.types.ndarray(dtype=ti.i32, ndim=1),
-    item_box: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2),
+    entry_box: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2),
     fine_levels: ti.types.ndarray(dtype=ti.i32, ndim=1),
     occ_origin: ti.types.ndarray(dtype=vec3, ndim=1),
     occ_inv_cell: ti.types.ndarray(ndim=1),
@@ -228,7 +228,7 @@ def _rigid_query(
             levels = (fine_levels[body_t] >> first_level) << first_level
         if levels != 0:
             query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local,
-                        ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)), cell_items, item_box,
+                        ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)), cell_items, entry_box,
                         occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, counts, inv_h0)
     n_pairs = counts[N_PAIRS] if n_query > 0 and counts[N_PAIRS] <= pairs.shape[0] else 0
     ti.loop_config(serialize=serial)
@@ -368,7 +368,7 @@ class RigidPipeline:
             n = self._launch(_rigid_query, self.poses, self.body_box, self.body_reach, self.body_clusters,
                              self.vert_local, self.tri, self.cluster_tris, self.cluster_start, self.cluster_box,
                              self.cluster_level,
-                             *self.grid.arrays(), self.grid.cell_items, self.grid.item_box,
+                             *self.grid.arrays(), self.grid.cell_items, self.grid.entry_box,
                              self.grid.body_levels, self.occupancy.origin, self.occupancy.inv_cell,
                              self.occupancy.dims, self.occupancy.offset, self.occupancy.table, self.world_box,
                              self.dir_info, self.dir_rot, self.dir_shift, self.dir_pad, self.query, self.pairs,
