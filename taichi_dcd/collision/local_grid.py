@@ -260,39 +260,58 @@ class Occupancy:
     box meets any cell covered by the body is then eight reads, whatever the box's size.
 
     box_lo, box_hi (n, 3), body (n,): boxes in their bodies' frames; cell_size: the smallest
-    cell (scene units). Each box marks the cells it covers and their neighbours (one cell
-    more each way), so that a query rounded differently from the build still finds it.
-    Holds per body, as Taichi ndarrays: `origin` (vec3), `inv_cell` (real), `dims` (ivec3:
-    cells per axis) and `offset` (i32) into `table`, the (dims + 1) table flattened x-major,
-    table[i, j, k] = covered cells in [0, i) × [0, j) × [0, k).
+    cell (scene units; a body's cells double until they fit OCCUPANCY_CELLS_PER_TRI cells per
+    box). A box's cells are computed by the kernel arithmetic `box_occupied` uses, so that a
+    query box meeting a box always meets one of its cells. Holds per body, as Taichi
+    ndarrays: `origin` (vec3), `inv_cell` (real), `dims` (ivec3: cells per axis) and `offset`
+    (i32) into `table`, the (dims + 1) table flattened x-major, table[i, j, k] = covered cells
+    in [0, i) × [0, j) × [0, k).
     """
 
     def __init__(self, box_lo: np.ndarray, box_hi: np.ndarray, body: np.ndarray, n_bodies: int,
                  cell_size: float):
+        real = runtime.real_dtype()
+        box_lo = np.ascontiguousarray(box_lo, dtype=real)
+        box_hi = np.ascontiguousarray(box_hi, dtype=real)
         body = np.asarray(body, dtype=np.int64)
-        origins, inv_cells, dims_all, offsets, tables = [], [], [], [], []
-        offset = 0
+        rows = max(n_bodies, 1)
+        origins = np.zeros((rows, 3))
+        inv_cells = np.ones(rows)
+        dims_all = np.zeros((rows, 3), np.int64)
         for k in range(n_bodies):
             mine = body == k
-            lo, hi = box_lo[mine].astype(np.float64), box_hi[mine].astype(np.float64)
-            if not len(lo):
-                origins.append(np.zeros(3))
-                inv_cells.append(1.0)
-                dims_all.append(np.zeros(3, np.int64))
-                offsets.append(offset)
-                tables.append(np.zeros(1, np.int32))
-                offset += 1
+            if not mine.any():
                 continue
-            budget = max(OCCUPANCY_MIN_CELLS, OCCUPANCY_CELLS_PER_TRI * len(lo))
+            lo, hi = box_lo[mine].astype(np.float64), box_hi[mine].astype(np.float64)
+            budget = max(OCCUPANCY_MIN_CELLS, OCCUPANCY_CELLS_PER_TRI * int(mine.sum()))
             size = cell_size
             while True:
+                # A cell of margin each way: the kernel's rounding may differ from NumPy's.
                 origin = lo.min(axis=0) - size
                 dims = np.floor((hi.max(axis=0) - origin) / size).astype(np.int64) + 2
                 if dims.prod() <= budget:
                     break
                 size *= 2.0
-            c0 = np.clip(np.floor((lo - origin) / size).astype(np.int64) - 1, 0, dims - 1)
-            c1 = np.clip(np.floor((hi - origin) / size).astype(np.int64) + 1, 0, dims - 1) + 1
+            origins[k], inv_cells[k], dims_all[k] = origin, 1.0 / size, dims
+        vec3 = ti.types.vector(3, runtime.real_type())
+        self.origin = _ndarray(vec3, origins.astype(real), (rows,))
+        self.inv_cell = _ndarray(runtime.real_type(), inv_cells.astype(real), (rows,))
+        cell_lo = np.zeros((len(box_lo), 3), np.int32)
+        cell_hi = np.zeros((len(box_lo), 3), np.int32)
+        if len(box_lo):
+            _occupancy_cells(box_lo, box_hi, body.astype(np.int32), self.origin, self.inv_cell, cell_lo, cell_hi)
+        offsets, tables = [], []
+        offset = 0
+        for k in range(rows):
+            mine = body == k
+            dims = dims_all[k]
+            if not mine.any():
+                offsets.append(offset)
+                tables.append(np.zeros(1, np.int32))
+                offset += 1
+                continue
+            c0 = np.clip(cell_lo[mine], 0, dims - 1)
+            c1 = np.clip(cell_hi[mine], 0, dims - 1) + 1
             # Box ranges [c0, c1) marked through a difference array, summed along each axis.
             diff = np.zeros(tuple(dims + 1), np.int32)
             for corner in range(8):
@@ -302,22 +321,35 @@ class Occupancy:
             covered = diff.cumsum(0).cumsum(1).cumsum(2)[:-1, :-1, :-1] > 0
             table = np.zeros(tuple(dims + 1), np.int32)
             table[1:, 1:, 1:] = covered.astype(np.int32).cumsum(0).cumsum(1).cumsum(2)
-            origins.append(origin)
-            inv_cells.append(1.0 / size)
-            dims_all.append(dims)
             offsets.append(offset)
             tables.append(table.ravel())
             offset += table.size
-        real = runtime.real_dtype()
-        vec3 = ti.types.vector(3, runtime.real_type())
-        rows = (max(n_bodies, 1),)
-        self.origin = _ndarray(vec3, np.array(origins, real).reshape(-1, 3), rows)
-        self.inv_cell = _ndarray(runtime.real_type(), np.array(inv_cells, real), rows)
-        self.dims = _ndarray(ivec3, np.array(dims_all, np.int32).reshape(-1, 3), rows)
-        self.offset = _ndarray(ti.i32, np.array(offsets, np.int32), rows)
-        flat = np.concatenate(tables) if tables else np.zeros(1, np.int32)
-        self.table = _ndarray(ti.i32, flat)
+        self.dims = _ndarray(ivec3, dims_all.astype(np.int32), (rows,))
+        self.offset = _ndarray(ti.i32, np.array(offsets, np.int32), (rows,))
+        self.table = _ndarray(ti.i32, np.concatenate(tables))
         self.cells = int(sum(int(np.prod(d)) for d in dims_all))
+
+
+@ti.func
+def occupancy_cell(k: ti.i32, p: ti.template(), origin: ti.template(), inv_cell: ti.template()) -> ivec3:
+    """The cell of body k's occupancy grid holding point p (clamped below to -1)."""
+    return ti.cast(ti.math.clamp(ti.floor((p - origin[k]) * inv_cell[k]), -1.0, 1e9), ti.i32)
+
+
+@ti.kernel
+def _occupancy_cells(box_lo: ti.types.ndarray(ndim=2), box_hi: ti.types.ndarray(ndim=2),
+                     body: ti.types.ndarray(dtype=ti.i32, ndim=1), origin: ti.types.ndarray(ndim=1),
+                     inv_cell: ti.types.ndarray(ndim=1), cell_lo: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                     cell_hi: ti.types.ndarray(dtype=ti.i32, ndim=2)):
+    """The occupancy cells holding each box's corners, as `box_occupied` computes them."""
+    for i in range(body.shape[0]):
+        lo = ti.Vector([box_lo[i, 0], box_lo[i, 1], box_lo[i, 2]])
+        hi = ti.Vector([box_hi[i, 0], box_hi[i, 1], box_hi[i, 2]])
+        c0 = occupancy_cell(body[i], lo, origin, inv_cell)
+        c1 = occupancy_cell(body[i], hi, origin, inv_cell)
+        for j in ti.static(range(3)):
+            cell_lo[i, j] = c0[j]
+            cell_hi[i, j] = c1[j]
 
 
 @ti.func
@@ -326,9 +358,8 @@ def box_occupied(k: ti.i32, lo: ti.template(), hi: ti.template(), origin: ti.tem
     """Whether the box [lo, hi] (body k's frame) meets a cell body k's boxes cover
     (`Occupancy`): the summed-volume table over the box's cells, by inclusion-exclusion."""
     n = dims[k]
-    a = ti.cast(ti.math.clamp(ti.floor((lo - origin[k]) * inv_cell[k]), -1.0, 1e9), ti.i32)
-    b = ti.cast(ti.math.clamp(ti.floor((hi - origin[k]) * inv_cell[k]), -1.0, 1e9), ti.i32)
-    a = ti.max(a, 0)
+    a = ti.max(occupancy_cell(k, lo, origin, inv_cell), 0)
+    b = occupancy_cell(k, hi, origin, inv_cell)
     b = ti.min(b, n - 1) + 1
     found = False
     if all(a < b):
