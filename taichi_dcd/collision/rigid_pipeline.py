@@ -44,6 +44,13 @@ mat3 = ti.math.mat3
 CLUSTER_LEVEL = 1
 # The change of frame's rounding, in ulps of the largest coordinate involved.
 FRAME_ROUND_ULPS = 16.0
+# The plane test before the narrow phase: a candidate whose other triangle lies wholly on one
+# side of this one's plane by more than PLANE_MARGIN_PADS frame-rounding pads plus
+# PLANE_MARGIN_ULPS ulps of the coordinates is dropped; triangles with twice their area below
+# PLANE_TEST_MIN_AREA times their extent squared (slivers) are not plane-tested.
+PLANE_MARGIN_PADS = 16.0
+PLANE_MARGIN_ULPS = 64.0
+PLANE_TEST_MIN_AREA = 1e-3
 # Step 2 visits the kept triangles in chunks of this many, in a strided order of chunks
 # (a prime stride, or another where the first divides the chunks' number).
 SPREAD_CHUNK = 16
@@ -64,20 +71,34 @@ def pose_of(poses: ti.template(), k: ti.i32):
 
 @ti.func
 def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round_pad: float, levels: ti.i32,
-                vert_local: ti.template(), grid: ti.template(), cell_items: ti.template(), entry_box: ti.template(),
+                vert_local: ti.template(), tri: ti.template(), grid: ti.template(), cell_items: ti.template(),
+                entry_box: ti.template(),
                 occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
                 occ_table: ti.template(), pairs: ti.template(), counts: ti.template(), inv_h0: float):
     """Step 2 for triangle a of body Q = info[0] (vertex indices ia): its box in T's frame
     (rot, shift; padded by round_pad and BOX_SLACK), and T's triangles in the cells it
-    covers at the levels in the bit mask `levels`, each pair appended once."""
+    covers at the levels in the bit mask `levels`, each pair appended once, but those whose
+    T triangle lies wholly on one side of a's plane by more than rounding can move it (no
+    straddle: Möller's test, the narrow phase's first, would turn them away)."""
     body_t = info[1]
     p0 = rot @ vert_local[ia[0]] + shift
     p1 = rot @ vert_local[ia[1]] + shift
     p2 = rot @ vert_local[ia[2]] + shift
     lo, hi = ti.min(p0, p1, p2), ti.max(p0, p1, p2)
-    pad = round_pad + ti.static(BOX_SLACK * runtime.tolerance()) * (hi - lo).max()
+    extent = (hi - lo).max()
+    pad = round_pad + ti.static(BOX_SLACK * runtime.tolerance()) * extent
     lo -= pad
     hi += pad
+    # a's unit normal in T's frame, for the plane test; none for a sliver, whose normal
+    # rounding turns too far.
+    normal = (p1 - p0).cross(p2 - p0)
+    area2 = normal.norm()
+    plane_test = area2 > ti.static(PLANE_TEST_MIN_AREA) * extent * extent
+    if plane_test:
+        normal /= area2
+    # Far more than the rounding of both frames' coordinates and of the distances.
+    plane_margin = ti.static(PLANE_MARGIN_PADS) * round_pad + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * (
+        extent + ti.abs(p0).max())
     if box_occupied(body_t, lo, hi, occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table):
         for level in range(LEVELS):
             if (levels >> level) & 1:
@@ -94,9 +115,18 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                                     corner = ti.max(c0, cell_of(lo_b, inv_h))
                                     if corner[0] == x and corner[1] == y and corner[2] == z:
                                         b = cell_items[f]
-                                        slot = ti.atomic_add(counts[N_PAIRS], 1)
-                                        if slot < pairs.shape[0]:
-                                            pairs[slot] = ivec2(a, b) if info[0] < body_t else ivec2(b, a)
+                                        keep = True
+                                        if plane_test:
+                                            ib = tri[b]
+                                            s0 = normal.dot(vert_local[ib[0]] - p0)
+                                            s1 = normal.dot(vert_local[ib[1]] - p0)
+                                            s2 = normal.dot(vert_local[ib[2]] - p0)
+                                            keep = (ti.min(s0, s1, s2) <= plane_margin
+                                                    and ti.max(s0, s1, s2) >= -plane_margin)
+                                        if keep:
+                                            slot = ti.atomic_add(counts[N_PAIRS], 1)
+                                            if slot < pairs.shape[0]:
+                                                pairs[slot] = ivec2(a, b) if info[0] < body_t else ivec2(b, a)
 
 
 @ti.kernel
@@ -175,7 +205,8 @@ def _rigid_query(
                         rot_t, shift_t = pose_of(poses, t)
                         dir_rot[d] = rot_t.transpose() @ rot_q
                         dir_shift[d] = rot_t.transpose() @ (shift_q - shift_t)
-                        dir_pad[d] = round_pad * (body_reach[q] + body_reach[t] + (shift_q - shift_t).norm())
+                        # World coordinates round with their own size: both translations count.
+                        dir_pad[d] = round_pad * (body_reach[q] + body_reach[t] + shift_q.norm() + shift_t.norm())
     n_dir = counts[N_DIR]
     n_items = counts[N_ITEMS] if n_dir <= dir_info.shape[0] else 0
     ti.loop_config(serialize=serial)
@@ -227,7 +258,7 @@ def _rigid_query(
         if first_level < LEVELS:
             levels = (fine_levels[body_t] >> first_level) << first_level
         if levels != 0:
-            query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local,
+            query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, tri,
                         ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)), cell_items, entry_box,
                         occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, counts, inv_h0)
     n_pairs = counts[N_PAIRS] if n_query > 0 and counts[N_PAIRS] <= pairs.shape[0] else 0
