@@ -51,13 +51,15 @@ FRAME_ROUND_ULPS = 16.0
 PLANE_MARGIN_PADS = 16.0
 PLANE_MARGIN_ULPS = 64.0
 PLANE_TEST_MIN_AREA = 1e-3
-# Step 2 visits the kept triangles in chunks of this many, in a strided order of chunks
-# (a prime stride, or another where the first divides the chunks' number).
+# Steps 2 and 3 share out chunks of this many kept triangles among WORKERS loop iterations,
+# each taking the next chunk until none is left (Taichi 1.7 gives a thread no fewer than 512
+# of a loop's iterations, so fewer than 1,024 would all go to one thread).
 SPREAD_CHUNK = 16
-SPREAD_STRIDE = 7919
-SPREAD_STRIDE_ALT = 7927
-# counts[]: directions, items (clusters to test), kept triangles, candidate pairs, contacts.
-N_DIR, N_ITEMS, N_KEPT, N_PAIRS, N_CONTACTS = 0, 1, 2, 3, 4
+WORKERS = 1024
+# counts[]: directions, items (clusters to test), kept triangles, candidate pairs, contacts,
+# the most candidates a chunk of kept triangles found, and the next chunk to take in steps 2
+# and 3.
+N_DIR, N_ITEMS, N_KEPT, N_PAIRS, N_CONTACTS, N_ROOM, N_NEXT_QUERY, N_NEXT_PAIR = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 @ti.func
@@ -74,10 +76,13 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                 vert_local: ti.template(), tri: ti.template(), grid: ti.template(), cell_items: ti.template(),
                 entry_box: ti.template(),
                 occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
-                occ_table: ti.template(), pairs: ti.template(), counts: ti.template(), inv_h0: float):
+                occ_table: ti.template(), pairs: ti.template(), region: ti.i32, room: ti.i32, n_found: ti.i32,
+                inv_h0: float) -> ti.i32:
     """Step 2 for triangle a of body Q = info[0] (vertex indices ia): its box in T's frame
     (rot, shift; padded by round_pad and BOX_SLACK), and T's triangles in the cells it
-    covers at the levels in the bit mask `levels`, each pair appended once, but those whose
+    covers at the levels in the bit mask `levels`, each pair appended once to its chunk's
+    region of `pairs` (room slots from region; n_found already there; returns the new count,
+    which may pass room: the caller then grows the regions), but those whose
     T triangle lies wholly on one side of a's plane by more than rounding can move it (no
     straddle: Möller's test, the narrow phase's first, would turn them away)."""
     body_t = info[1]
@@ -124,9 +129,11 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                                             keep = (ti.min(s0, s1, s2) <= plane_margin
                                                     and ti.max(s0, s1, s2) >= -plane_margin)
                                         if keep:
-                                            slot = ti.atomic_add(counts[N_PAIRS], 1)
-                                            if slot < pairs.shape[0]:
-                                                pairs[slot] = ivec2(a, b) if info[0] < body_t else ivec2(b, a)
+                                            if n_found < room:
+                                                pairs[region + n_found] = (ivec2(a, b) if info[0] < body_t
+                                                                           else ivec2(b, a))
+                                            n_found += 1
+    return n_found
 
 
 @ti.kernel
@@ -161,12 +168,14 @@ def _rigid_query(
     dir_pad: ti.types.ndarray(ndim=1),
     query: ti.types.ndarray(dtype=ivec2, ndim=1),
     pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
+    chunk_found: ti.types.ndarray(dtype=ti.i32, ndim=1),
     contact_pair: ti.types.ndarray(dtype=ivec2, ndim=1),
     contact_depth: ti.types.ndarray(ndim=1),
     contact_normal: ti.types.ndarray(dtype=vec3, ndim=1),
     contact_side: ti.types.ndarray(ndim=1),
     contact_point: ti.types.ndarray(dtype=vec3, ndim=1),
     counts: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    room: ti.i32,
     inv_h0: float,
     serial: ti.template(),
 ) -> ti.i32:
@@ -179,7 +188,7 @@ def _rigid_query(
     then says how much each needs)."""
     round_pad = ti.static(FRAME_ROUND_ULPS * runtime.machine_eps())
     n_bodies = body_box.shape[0]
-    for i in ti.static(range(5)):
+    for i in ti.static(range(8)):
         counts[i] = 0
     for k in range(n_bodies):
         rot, shift = pose_of(poses, k)
@@ -240,51 +249,68 @@ def _rigid_query(
                     query[slot + i] = ivec2(d, cluster_tris[first + i])
     n_query = counts[N_KEPT] if counts[N_KEPT] <= query.shape[0] else 0
     n_chunks = (n_query + SPREAD_CHUNK - 1) // SPREAD_CHUNK
-    stride = SPREAD_STRIDE if n_chunks % SPREAD_STRIDE != 0 else SPREAD_STRIDE_ALT
+    n_taken = n_chunks if n_chunks <= chunk_found.shape[0] else 0
     ti.loop_config(serialize=serial)
-    for k in range(n_chunks * SPREAD_CHUNK):
-        # Taichi gives each CPU thread one contiguous block of a loop's iterations, and the
-        # kept triangles are in space order, their work bunched where the bodies meet: the
-        # loop visits chunks of them in a strided order, so that every block gets its share.
-        s = (k // SPREAD_CHUNK * stride) % n_chunks * SPREAD_CHUNK + k % SPREAD_CHUNK
-        if s >= n_query:
-            continue
-        d, a = query[s][0], query[s][1]
-        info = dir_info[d]
-        body_t = info[1]
-        ia = tri[a]
-        first_level = ia[4] + 1 - info[2]
-        levels = 0
-        if first_level < LEVELS:
-            levels = (fine_levels[body_t] >> first_level) << first_level
-        if levels != 0:
-            query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, tri,
-                        ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)), cell_items, entry_box,
-                        occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, counts, inv_h0)
-    n_pairs = counts[N_PAIRS] if n_query > 0 and counts[N_PAIRS] <= pairs.shape[0] else 0
+    for _ in range(WORKERS):
+        # Taichi gives each CPU thread one fixed block of a loop's iterations, and the kept
+        # triangles are in space order, their work bunched where the bodies meet; a thread
+        # also starts late now and then. So each worker takes the next chunk of kept
+        # triangles until none is left, and writes its pairs into the chunk's own region of
+        # `pairs` (no counter shared per pair, no cache line written by two threads).
+        while counts[N_NEXT_QUERY] < n_taken:
+            c = ti.atomic_add(counts[N_NEXT_QUERY], 1)
+            if c >= n_taken:
+                break
+            first = c * SPREAD_CHUNK
+            n_found = 0
+            for s in range(first, ti.min(first + SPREAD_CHUNK, n_query)):
+                d, a = query[s][0], query[s][1]
+                info = dir_info[d]
+                body_t = info[1]
+                ia = tri[a]
+                first_level = ia[4] + 1 - info[2]
+                levels = 0
+                if first_level < LEVELS:
+                    levels = (fine_levels[body_t] >> first_level) << first_level
+                if levels != 0:
+                    n_found = query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, tri,
+                                          ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)),
+                                          cell_items, entry_box, occ_origin, occ_inv_cell, occ_dims, occ_offset,
+                                          occ_table, pairs, c * room, room, n_found, inv_h0)
+            chunk_found[c] = n_found
+            ti.atomic_add(counts[N_PAIRS], n_found)
+            ti.atomic_max(counts[N_ROOM], n_found)
+    fits = n_query > 0 and n_chunks <= chunk_found.shape[0] and counts[N_ROOM] <= room
+    n_pair_chunks = n_chunks if fits else 0
     ti.loop_config(serialize=serial)
-    for k in range(n_pairs):
-        ab = pairs[k]
-        ia, ib = tri[ab[0]], tri[ab[1]]
-        rot_a, shift_a = pose_of(poses, ia[3])
-        rot_b, shift_b = pose_of(poses, ib[3])
-        a0 = rot_a @ vert_local[ia[0]] + shift_a
-        a1 = rot_a @ vert_local[ia[1]] + shift_a
-        a2 = rot_a @ vert_local[ia[2]] + shift_a
-        b0 = rot_b @ vert_local[ib[0]] + shift_b
-        b1 = rot_b @ vert_local[ib[1]] + shift_b
-        b2 = rot_b @ vert_local[ib[2]] + shift_b
-        hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
-        if hit:
-            slot = ti.atomic_add(counts[N_CONTACTS], 1)
-            if slot < contact_depth.shape[0]:
-                contact_pair[slot] = ab
-                contact_depth[slot] = depth
-                contact_normal[slot] = normal
-                contact_side[slot] = ti.cast(side, ti.i8)
-                contact_point[slot] = point
+    for _ in range(WORKERS):
+        while counts[N_NEXT_PAIR] < n_pair_chunks:
+            c = ti.atomic_add(counts[N_NEXT_PAIR], 1)
+            if c >= n_pair_chunks:
+                break
+            for i in range(chunk_found[c]):
+                ab = pairs[c * room + i]
+                ia, ib = tri[ab[0]], tri[ab[1]]
+                rot_a, shift_a = pose_of(poses, ia[3])
+                rot_b, shift_b = pose_of(poses, ib[3])
+                a0 = rot_a @ vert_local[ia[0]] + shift_a
+                a1 = rot_a @ vert_local[ia[1]] + shift_a
+                a2 = rot_a @ vert_local[ia[2]] + shift_a
+                b0 = rot_b @ vert_local[ib[0]] + shift_b
+                b1 = rot_b @ vert_local[ib[1]] + shift_b
+                b2 = rot_b @ vert_local[ib[2]] + shift_b
+                hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
+                if hit:
+                    slot = ti.atomic_add(counts[N_CONTACTS], 1)
+                    if slot < contact_depth.shape[0]:
+                        contact_pair[slot] = ab
+                        contact_depth[slot] = depth
+                        contact_normal[slot] = normal
+                        contact_side[slot] = ti.cast(side, ti.i8)
+                        contact_point[slot] = point
     result = counts[N_CONTACTS]
-    if n_dir > dir_info.shape[0] or counts[N_KEPT] > query.shape[0] or counts[N_PAIRS] > pairs.shape[0]:
+    if (n_dir > dir_info.shape[0] or counts[N_KEPT] > query.shape[0] or n_chunks > chunk_found.shape[0]
+            or counts[N_ROOM] > room):
         result = -1
     return result
 
@@ -363,12 +389,19 @@ class RigidPipeline:
         self.world_box = ti.ndarray(vec, shape=(max(n_bodies, 1), 2))
         # The poses, written in place by `run`: the kernel reads this array's memory.
         self.poses = np.zeros((max(n_bodies, 1), 4, 3), real)
-        self.counts = ti.ndarray(ti.i32, shape=5)
+        self.counts = ti.ndarray(ti.i32, shape=8)
         self._allocate_directions(max(2, min(n_bodies * (n_bodies - 1), 1024)))
         self.query = ti.ndarray(ivec2, shape=max(1024, m // 4))
-        self.pairs = ti.ndarray(ivec2, shape=max(1024, m // 8))
+        # Candidate pairs: `room` slots for each chunk of SPREAD_CHUNK kept triangles.
+        self.room = 64
+        self._allocate_pairs()
         self.contacts = Contacts(max(1024, m // 64))
         self._launch = Launcher()
+
+    def _allocate_pairs(self) -> None:
+        chunks = -(-self.query.shape[0] // SPREAD_CHUNK)
+        self.chunk_found = ti.ndarray(ti.i32, shape=chunks)
+        self.pairs = ti.ndarray(ivec2, shape=chunks * self.room)
 
     def _allocate_directions(self, capacity: int) -> None:
         vec = ti.types.vector(3, runtime.real_type())
@@ -403,7 +436,8 @@ class RigidPipeline:
                              self.grid.body_levels, self.occupancy.origin, self.occupancy.inv_cell,
                              self.occupancy.dims, self.occupancy.offset, self.occupancy.table, self.world_box,
                              self.dir_info, self.dir_rot, self.dir_shift, self.dir_pad, self.query, self.pairs,
-                             c.pair, c.depth, c.normal, c.side, c.point, self.counts, 1.0 / self.cell_size,
+                             self.chunk_found, c.pair, c.depth, c.normal, c.side, c.point, self.counts, self.room,
+                             1.0 / self.cell_size,
                              runtime.serial_loops(self.n_tris))
             if 0 <= n <= c.capacity:
                 break
@@ -415,8 +449,10 @@ class RigidPipeline:
                 self._allocate_directions(int(counts[N_DIR]))
             elif counts[N_KEPT] > self.query.shape[0]:
                 self.query = ti.ndarray(ivec2, shape=max(int(counts[N_KEPT]), 2 * self.query.shape[0]))
+                self._allocate_pairs()
             else:
-                self.pairs = ti.ndarray(ivec2, shape=max(int(counts[N_PAIRS]), 2 * self.pairs.shape[0]))
+                self.room = max(int(counts[N_ROOM]), 2 * self.room)
+                self._allocate_pairs()
         c.count = n
         return n
 

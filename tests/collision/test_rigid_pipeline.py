@@ -115,7 +115,8 @@ def test_overflowing_buffers_grow_and_give_the_same_contacts(f64):
     from taichi_dcd.collision.broadphase import ivec2
 
     pipeline.query = ti.ndarray(ivec2, shape=1)
-    pipeline.pairs = ti.ndarray(ivec2, shape=1)
+    pipeline.room = 1
+    pipeline._allocate_pairs()
     pipeline.contacts = Contacts(1)
     pipeline._allocate_directions(1)
     expected = assert_matches_brute(pipeline, meshes, rotation, translation)
