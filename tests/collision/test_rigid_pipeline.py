@@ -146,3 +146,17 @@ def test_bad_input_is_refused_with_one_line(f64):
     rotation[1, 0, 0] = np.nan
     with pytest.raises(ValueError, match="body 1's pose has a NaN"):
         pipeline.run(rotation, np.zeros((2, 3)))
+
+
+def test_parallel_loops_find_the_same_contacts(f64, monkeypatch):
+    """Large queries run their loops in parallel, chunks of kept triangles shared out among
+    workers as they come free: the same contacts as the brute force."""
+    from taichi_dcd.collision import rigid_pipeline
+
+    monkeypatch.setattr(rigid_pipeline.runtime, "serial_loops", lambda work: False)
+    rng = np.random.default_rng(11)
+    meshes = soup_bodies(rng, n_bodies=5, tris=60, size=0.15)
+    rotation = np.stack([random_rotation(rng) for _ in meshes])
+    translation = rng.uniform(-0.1, 0.1, (5, 3))
+    expected = assert_matches_brute(RigidPipeline(meshes), meshes, rotation, translation)
+    assert len(expected) > 20
