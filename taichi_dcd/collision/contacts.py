@@ -93,3 +93,18 @@ class PairResults(NamedTuple):
     depth: Any
     normal: Any
     point: Any
+
+
+@ti.func
+def append_contact(rows: ti.template(), counter: ti.template(), counter_slot: ti.template(), ab, depth, normal, side,
+                   point):
+    """Append one row to a contact buffer's arrays, rows = ti.static((pair, depth, normal,
+    side, point)), at the slot counter[counter_slot] hands out (atomically); past the
+    capacity the row is counted but not written (the caller grows the buffer and runs again)."""
+    slot = ti.atomic_add(counter[counter_slot], 1)
+    if slot < rows[1].shape[0]:
+        rows[0][slot] = ab
+        rows[1][slot] = depth
+        rows[2][slot] = normal
+        rows[3][slot] = ti.cast(side, ti.i8)
+        rows[4][slot] = point

@@ -12,7 +12,7 @@ import taichi as ti
 
 from ..core import runtime
 from .broadphase import UniformGrid, ivec2, ivec5
-from .contacts import Contacts
+from .contacts import Contacts, append_contact
 from ..core.geometry import vec3
 from ..core.launch import Launcher
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
@@ -71,13 +71,8 @@ def _collide_candidates(
                 a_behind, b_behind, _, _, _ = pressed_through(a0, a1, a2, b0, b1, b2)
                 keep = a_behind or b_behind
         if keep:
-            slot = ti.atomic_add(contact_count[0], 1)
-            if slot < contact_depth.shape[0]:
-                contact_pair[slot] = ab
-                contact_depth[slot] = depth
-                contact_normal[slot] = normal
-                contact_side[slot] = ti.cast(side, ti.i8)
-                contact_point[slot] = point
+            append_contact(ti.static((contact_pair, contact_depth, contact_normal, contact_side, contact_point)),
+                           contact_count, 0, ab, depth, normal, side, point)
     return contact_count[0]
 
 

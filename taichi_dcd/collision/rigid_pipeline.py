@@ -29,7 +29,7 @@ from ..core import runtime
 from ..core.geometry import vec3
 from ..core.launch import Launcher
 from .broadphase import BOX_SLACK, default_cell_size, ivec2
-from .contacts import Contacts
+from .contacts import Contacts, append_contact
 from .grid_cells import LEVELS, boxes_overlap, cell_of, level_inv_h
 from .local_grid import LocalGrid, Occupancy, box_occupied, cell_run
 from .narrowphase import collide_triangle_pair
@@ -69,6 +69,18 @@ def pose_of(poses: ti.template(), k: ti.i32):
                 [poses[k, 1][i] for i in ti.static(range(3))],
                 [poses[k, 2][i] for i in ti.static(range(3))]])
     return rot, poses[k, 3]
+
+
+@ti.func
+def next_chunk(counts: ti.template(), which: ti.template(), n_chunks: ti.i32) -> ti.i32:
+    """The next of n_chunks chunks for a worker to take, from the counter counts[which], or -1
+    when none is left."""
+    c = -1
+    if counts[which] < n_chunks:
+        c = ti.atomic_add(counts[which], 1)
+        if c >= n_chunks:
+            c = -1
+    return c
 
 
 @ti.func
@@ -257,10 +269,8 @@ def _rigid_query(
         # also starts late now and then. So each worker takes the next chunk of kept
         # triangles until none is left, and writes its pairs into the chunk's own region of
         # `pairs` (no counter shared per pair, no cache line written by two threads).
-        while counts[N_NEXT_QUERY] < n_taken:
-            c = ti.atomic_add(counts[N_NEXT_QUERY], 1)
-            if c >= n_taken:
-                break
+        c = next_chunk(counts, N_NEXT_QUERY, n_taken)
+        while c >= 0:
             first = c * SPREAD_CHUNK
             n_found = 0
             for s in range(first, ti.min(first + SPREAD_CHUNK, n_query)):
@@ -280,14 +290,13 @@ def _rigid_query(
             chunk_found[c] = n_found
             ti.atomic_add(counts[N_PAIRS], n_found)
             ti.atomic_max(counts[N_ROOM], n_found)
+            c = next_chunk(counts, N_NEXT_QUERY, n_taken)
     fits = n_query > 0 and n_chunks <= chunk_found.shape[0] and counts[N_ROOM] <= room
     n_pair_chunks = n_chunks if fits else 0
     ti.loop_config(serialize=serial)
     for _ in range(WORKERS):
-        while counts[N_NEXT_PAIR] < n_pair_chunks:
-            c = ti.atomic_add(counts[N_NEXT_PAIR], 1)
-            if c >= n_pair_chunks:
-                break
+        c = next_chunk(counts, N_NEXT_PAIR, n_pair_chunks)
+        while c >= 0:
             for i in range(chunk_found[c]):
                 ab = pairs[c * room + i]
                 ia, ib = tri[ab[0]], tri[ab[1]]
@@ -301,13 +310,9 @@ def _rigid_query(
                 b2 = rot_b @ vert_local[ib[2]] + shift_b
                 hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
                 if hit:
-                    slot = ti.atomic_add(counts[N_CONTACTS], 1)
-                    if slot < contact_depth.shape[0]:
-                        contact_pair[slot] = ab
-                        contact_depth[slot] = depth
-                        contact_normal[slot] = normal
-                        contact_side[slot] = ti.cast(side, ti.i8)
-                        contact_point[slot] = point
+                    append_contact(ti.static((contact_pair, contact_depth, contact_normal, contact_side, contact_point)),
+                                   counts, N_CONTACTS, ab, depth, normal, side, point)
+            c = next_chunk(counts, N_NEXT_PAIR, n_pair_chunks)
     result = counts[N_CONTACTS]
     if (n_dir > dir_info.shape[0] or counts[N_KEPT] > query.shape[0] or n_chunks > chunk_found.shape[0]
             or counts[N_ROOM] > room):
