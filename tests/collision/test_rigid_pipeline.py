@@ -160,3 +160,20 @@ def test_parallel_loops_find_the_same_contacts(f64, monkeypatch):
     translation = rng.uniform(-0.1, 0.1, (5, 3))
     expected = assert_matches_brute(RigidPipeline(meshes), meshes, rotation, translation)
     assert len(expected) > 20
+
+
+@pytest.mark.parametrize("scale, offset", [(1e-3, 1e3), (1e3, 0.0), (1.0, 1e4)])
+def test_tiny_huge_and_far_bodies_match_brute_force(f64, scale, offset):
+    """Millimetre bodies a kilometre from the origin, kilometre bodies, and a box resting
+    exactly on a box 10 km away: the change of frame's rounding is padded by the size of the
+    world coordinates, so no pair the narrow phase finds there is missed."""
+    rng = np.random.default_rng(21)
+    meshes = [(v * scale, f) for v, f in soup_bodies(rng, n_bodies=3, tris=30, size=0.1)]
+    rotation = np.stack([random_rotation(rng) for _ in meshes])
+    translation = offset + scale * rng.uniform(-0.2, 0.2, (3, 3))
+    expected = assert_matches_brute(RigidPipeline(meshes), meshes, rotation, translation, atol=1e-9 * scale)
+    assert len(expected) > 3
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    boxes = [(box.vertices * scale, box.faces), (box.vertices * 0.5 * scale, box.faces)]
+    resting = np.array([[offset, offset, offset], [offset + 0.25 * scale, offset, offset + 0.75 * scale]])
+    assert_matches_brute(RigidPipeline(boxes), boxes, np.stack([np.eye(3)] * 2), resting, atol=0.0)
