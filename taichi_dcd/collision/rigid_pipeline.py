@@ -153,6 +153,7 @@ def _rigid_query(
     poses: ti.types.ndarray(dtype=vec3, ndim=2),
     body_box: ti.types.ndarray(dtype=vec3, ndim=2),
     body_reach: ti.types.ndarray(ndim=1),
+    body_static: ti.types.ndarray(dtype=ti.i32, ndim=1),
     body_clusters: ti.types.ndarray(dtype=ti.i32, ndim=1),
     vert_local: ti.types.ndarray(dtype=vec3, ndim=1),
     tri: ti.types.ndarray(dtype=ivec5, ndim=1),
@@ -193,7 +194,8 @@ def _rigid_query(
 ) -> ti.i32:
     """Candidate pairs of rigid bodies from their own-frame grids (module docstring, steps
     1-2), then the unified DCD test (Eq. 6 and its gradient) on each in world coordinates.
-    poses[k] = (rotation rows 0-2, translation) of body k. A direction d (Q, T) holds
+    poses[k] = (rotation rows 0-2, translation) of body k; two static bodies are never
+    paired. A direction d (Q, T) holds
     dir_info[d] = (Q, T, Q's triangles look up T's levels >= their own (1) or > (0), Q's
     first item, Q's first cluster) and the change from Q's frame to T's (dir_rot, dir_shift,
     dir_pad: the rounding pad). Returns the contacts, or -1 if a buffer overflowed (counts
@@ -213,7 +215,8 @@ def _rigid_query(
     ti.loop_config(serialize=True)
     for i in range(n_bodies):
         for j in range(i + 1, n_bodies):
-            if boxes_overlap(world_box[i, 0], world_box[i, 1], world_box[j, 0], world_box[j, 1]):
+            if (body_static[i] == 0 or body_static[j] == 0) and boxes_overlap(
+                    world_box[i, 0], world_box[i, 1], world_box[j, 0], world_box[j, 1]):
                 for way in ti.static(range(2)):
                     q, t = (i, j) if way == 0 else (j, i)
                     d = counts[N_DIR]
@@ -327,13 +330,14 @@ class RigidPipeline:
     meshes: a list of (vertices (n_i, 3) float, faces (m_i, 3) int) numpy pairs, one per
     body, in the body's own frame (scene units; faces give outward normals by the
     right-hand rule). cell_size: the base cell size (default: `default_cell_size` of all
-    the triangles' boxes). `run(rotation, translation)` finds every intersecting pair of
-    triangles of different bodies at those poses into `self.contacts` (pairs as global
+    the triangles' boxes). static (n_bodies,) bool: bodies that never move; two of them are
+    never paired. `run(rotation, translation)` finds every intersecting pair of
+    triangles of different bodies, not both static, at those poses into `self.contacts` (pairs as global
     triangle indices over the meshes in order, the lower body first), as
     `CollisionPipeline.run` finds them on the posed vertices. Buffers grow on overflow.
     """
 
-    def __init__(self, meshes, cell_size: float | None = None):
+    def __init__(self, meshes, cell_size: float | None = None, static=None):
         runtime.ensure_init()
         real = runtime.real_dtype()
         checked = [check_mesh(k, mesh) for k, mesh in enumerate(meshes)]
@@ -391,6 +395,10 @@ class RigidPipeline:
                 body_lo[k], body_hi[k] = np.inf, -np.inf
         self.body_box = _array(vec, np.stack([body_lo, body_hi], axis=1))
         self.body_reach = _array(runtime.real_type(), reach)
+        flags = np.zeros(n_bodies, bool) if static is None else np.asarray(static, dtype=bool).ravel()
+        if len(flags) != n_bodies:
+            raise ValueError(f"static needs one flag per body ({n_bodies}), got {len(flags)}")
+        self.body_static = _array(ti.i32, flags.astype(np.int32))
         self.world_box = ti.ndarray(vec, shape=(max(n_bodies, 1), 2))
         # The poses, written in place by `run`: the kernel reads this array's memory.
         self.poses = np.zeros((max(n_bodies, 1), 4, 3), real)
@@ -434,7 +442,8 @@ class RigidPipeline:
         self.poses[:, 3, :] = translation
         c = self.contacts
         while True:
-            n = self._launch(_rigid_query, self.poses, self.body_box, self.body_reach, self.body_clusters,
+            n = self._launch(_rigid_query, self.poses, self.body_box, self.body_reach, self.body_static,
+                             self.body_clusters,
                              self.vert_local, self.tri, self.cluster_tris, self.cluster_start, self.cluster_box,
                              self.cluster_level,
                              *self.grid.arrays(), self.grid.cell_items, self.grid.entry_box,

@@ -177,3 +177,21 @@ def test_tiny_huge_and_far_bodies_match_brute_force(f64, scale, offset):
     boxes = [(box.vertices * scale, box.faces), (box.vertices * 0.5 * scale, box.faces)]
     resting = np.array([[offset, offset, offset], [offset + 0.25 * scale, offset, offset + 0.75 * scale]])
     assert_matches_brute(RigidPipeline(boxes), boxes, np.stack([np.eye(3)] * 2), resting, atol=0.0)
+
+
+def test_static_bodies_are_not_paired_with_each_other(f64):
+    rng = np.random.default_rng(4)
+    meshes = soup_bodies(rng, n_bodies=3, tris=30, size=0.1)
+    rotation = np.stack([random_rotation(rng) for _ in meshes])
+    translation = rng.uniform(-0.05, 0.05, (3, 3))
+    everything = brute_contacts(meshes, rotation, translation)
+    offsets = np.cumsum([0] + [len(f) for _, f in meshes])
+    body = np.repeat(np.arange(3), np.diff(offsets))
+    pipeline = RigidPipeline(meshes, static=[True, True, False])
+    pipeline.run(rotation, translation)
+    got = {tuple(p) for p in pipeline.contacts.to_numpy().pair.tolist()}
+    wanted = {k for k in everything if body[k[1]] == 2}
+    assert any(body[k[1]] == 1 for k in everything), "the two static bodies should overlap"
+    assert got == wanted and len(wanted) > 0
+    with pytest.raises(ValueError, match="static needs one flag per body"):
+        RigidPipeline(meshes, static=[True])
