@@ -169,15 +169,14 @@ class LocalGrid:
         self.entries = len(all_items)
         self.hashed_cells = len(first)
         self.dense_cells = total
-        self.cell_items = _ndarray(ti.i32, all_items, (max(len(all_items), 1),))
-        self.dense_start = _ndarray(ti.i32, dense_start)
-        self.dense_origin = _ndarray(ivec4, dense_origin.astype(np.int32), (len(dense_origin),))
-        self.dense_dims = _ndarray(ivec4, dense_dims.astype(np.int32), (len(dense_dims),))
-        self.entry_box = _ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1)[all_items],
-                                  (max(len(all_items), 1), 2))
+        self.cell_items = to_ndarray(ti.i32, all_items)
+        self.dense_start = to_ndarray(ti.i32, dense_start)
+        self.dense_origin = to_ndarray(ivec4, dense_origin.astype(np.int32))
+        self.dense_dims = to_ndarray(ivec4, dense_dims.astype(np.int32))
+        self.entry_box = to_ndarray(ti.types.vector(3, ti.f32), np.stack([lo32, hi32], axis=1)[all_items])
         masks = np.zeros(n_bodies, np.int64)
         np.bitwise_or.at(masks, body, np.int64(1) << level.astype(np.int64))
-        self.body_levels = _ndarray(ti.i32, masks.astype(np.uint32).view(np.int32), (max(n_bodies, 1),))
+        self.body_levels = to_ndarray(ti.i32, masks.astype(np.uint32).view(np.int32))
         self.level = level
 
     def arrays(self) -> tuple:
@@ -236,16 +235,18 @@ def cell_run(body: ti.i32, level: ti.i32, c: ivec3, grid: ti.template()) -> ivec
     return run
 
 
-def _ndarray(dtype, values: np.ndarray, shape: tuple | None = None):
-    """A Taichi ndarray holding `values`; shape (at least one row) if values may be empty."""
-    arr = ti.ndarray(dtype, shape=shape if shape is not None else values.shape)
-    if len(values):
-        if arr.shape == tuple(values.shape[: len(arr.shape)]):
-            arr.from_numpy(values)
-        else:
-            padded = np.zeros(arr.shape + values.shape[len(arr.shape):], values.dtype)
-            padded[: len(values)] = values
-            arr.from_numpy(padded)
+def to_ndarray(dtype, values) -> ti.Ndarray:
+    """A Taichi ndarray of `dtype` (a primitive or vector type) holding `values` (rows first;
+    at least one row, zeros where values is empty)."""
+    values = np.asarray(values)
+    rows = max(len(values), 1)
+    element = values.shape[1:]
+    element_dims = getattr(dtype, "ndim", 0) if hasattr(dtype, "dtype") else 0
+    arr = ti.ndarray(dtype, shape=(rows,) + element[: len(element) - element_dims])
+    padded = np.zeros((rows,) + element, values.dtype if len(values) else np.float64)
+    padded[: len(values)] = values
+    base = getattr(dtype, "dtype", dtype)
+    arr.from_numpy(padded.astype({ti.i32: np.int32, ti.f32: np.float32, ti.f64: np.float64}[base]))
     return arr
 
 
@@ -294,8 +295,8 @@ class Occupancy:
                 size *= 2.0
             origins[k], inv_cells[k], dims_all[k] = origin, 1.0 / size, dims
         vec3 = ti.types.vector(3, runtime.real_type())
-        self.origin = _ndarray(vec3, origins.astype(real), (rows,))
-        self.inv_cell = _ndarray(runtime.real_type(), inv_cells.astype(real), (rows,))
+        self.origin = to_ndarray(vec3, origins.astype(real))
+        self.inv_cell = to_ndarray(runtime.real_type(), inv_cells.astype(real))
         cell_lo = np.zeros((len(box_lo), 3), np.int32)
         cell_hi = np.zeros((len(box_lo), 3), np.int32)
         if len(box_lo):
@@ -324,9 +325,9 @@ class Occupancy:
             offsets.append(offset)
             tables.append(table.ravel())
             offset += table.size
-        self.dims = _ndarray(ivec3, dims_all.astype(np.int32), (rows,))
-        self.offset = _ndarray(ti.i32, np.array(offsets, np.int32), (rows,))
-        self.table = _ndarray(ti.i32, np.concatenate(tables))
+        self.dims = to_ndarray(ivec3, dims_all.astype(np.int32))
+        self.offset = to_ndarray(ti.i32, np.array(offsets, np.int32))
+        self.table = to_ndarray(ti.i32, np.concatenate(tables))
         self.cells = int(sum(int(np.prod(d)) for d in dims_all))
 
 

@@ -31,7 +31,7 @@ from ..core.launch import Launcher
 from .broadphase import BOX_SLACK, default_cell_size, ivec2
 from .contacts import Contacts, append_contact
 from .grid_cells import LEVELS, boxes_overlap, cell_of, level_inv_h
-from .local_grid import LocalGrid, Occupancy, box_occupied, cell_run
+from .local_grid import LocalGrid, Occupancy, box_occupied, cell_run, to_ndarray
 from .narrowphase import collide_triangle_pair
 from .pipeline import check_mesh
 
@@ -373,15 +373,15 @@ class RigidPipeline:
         first = np.flatnonzero(new)
         self.n_clusters = len(first)
         vec = ti.types.vector(3, runtime.real_type())
-        self.vert_local = _array(vec, x)
-        self.tri = _array(ivec5, np.column_stack([tri_indices, tri_body, self.grid.level]).astype(np.int32))
-        self.cluster_tris = _array(ti.i32, order.astype(np.int32))
-        self.cluster_start = _array(ti.i32, np.append(first, m).astype(np.int32))
-        self.cluster_box = _array(vec, np.stack([np.minimum.reduceat(lo[order], first) if m else lo,
+        self.vert_local = to_ndarray(vec, x)
+        self.tri = to_ndarray(ivec5, np.column_stack([tri_indices, tri_body, self.grid.level]).astype(np.int32))
+        self.cluster_tris = to_ndarray(ti.i32, order.astype(np.int32))
+        self.cluster_start = to_ndarray(ti.i32, np.append(first, m).astype(np.int32))
+        self.cluster_box = to_ndarray(vec, np.stack([np.minimum.reduceat(lo[order], first) if m else lo,
                                                  np.maximum.reduceat(hi[order], first) if m else hi], axis=1))
-        self.cluster_level = _array(ti.i32, np.minimum.reduceat(self.grid.level[order], first) if m else [0])
+        self.cluster_level = to_ndarray(ti.i32, np.minimum.reduceat(self.grid.level[order], first) if m else [0])
         cluster_body = tri_body[order][first]
-        self.body_clusters = _array(ti.i32, np.searchsorted(cluster_body, np.arange(n_bodies + 1)).astype(np.int32))
+        self.body_clusters = to_ndarray(ti.i32, np.searchsorted(cluster_body, np.arange(n_bodies + 1)).astype(np.int32))
         # Each body's box in its frame and the largest coordinate of its vertices.
         body_lo = np.zeros((n_bodies, 3))
         body_hi = np.zeros((n_bodies, 3))
@@ -393,12 +393,12 @@ class RigidPipeline:
                 reach[k] = np.abs(corners[mine]).max()
             else:  # no triangles: a box that meets nothing
                 body_lo[k], body_hi[k] = np.inf, -np.inf
-        self.body_box = _array(vec, np.stack([body_lo, body_hi], axis=1))
-        self.body_reach = _array(runtime.real_type(), reach)
+        self.body_box = to_ndarray(vec, np.stack([body_lo, body_hi], axis=1))
+        self.body_reach = to_ndarray(runtime.real_type(), reach)
         flags = np.zeros(n_bodies, bool) if static is None else np.asarray(static, dtype=bool).ravel()
         if len(flags) != n_bodies:
             raise ValueError(f"static needs one flag per body ({n_bodies}), got {len(flags)}")
-        self.body_static = _array(ti.i32, flags.astype(np.int32))
+        self.body_static = to_ndarray(ti.i32, flags.astype(np.int32))
         self.world_box = ti.ndarray(vec, shape=(max(n_bodies, 1), 2))
         # The poses, written in place by `run`: the kernel reads this array's memory.
         self.poses = np.zeros((max(n_bodies, 1), 4, 3), real)
@@ -474,24 +474,3 @@ class RigidPipeline:
         """(triangles kept by the clusters' test, candidate pairs) of the last query."""
         counts = self.counts.to_numpy()
         return int(counts[N_KEPT]), int(counts[N_PAIRS])
-
-
-def _array(dtype, values: np.ndarray):
-    """A Taichi ndarray holding `values` (at least one row, zeros if values is empty)."""
-    values = np.asarray(values)
-    rows = max(len(values), 1)
-    element = values.shape[1:]
-    if dtype in (ti.i32,) or not hasattr(dtype, "ndim"):
-        element_dims = 0
-    else:
-        element_dims = dtype.ndim
-    arr = ti.ndarray(dtype, shape=(rows,) + element[: len(element) - element_dims])
-    padded = np.zeros((rows,) + element, values.dtype if len(values) else np.float64)
-    padded[: len(values)] = values
-    arr.from_numpy(padded.astype(_numpy_type(dtype)))
-    return arr
-
-
-def _numpy_type(dtype):
-    base = getattr(dtype, "dtype", dtype)
-    return {ti.i32: np.int32, ti.f32: np.float32, ti.f64: np.float64}[base]
