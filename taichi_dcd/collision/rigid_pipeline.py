@@ -331,9 +331,9 @@ class RigidPipeline:
     body, in the body's own frame (scene units; faces give outward normals by the
     right-hand rule). cell_size: the base cell size (default: `default_cell_size` of all
     the triangles' boxes). static (n_bodies,) bool: bodies that never move; two of them are
-    never paired. `run(rotation, translation)` finds every intersecting pair of
-    triangles of different bodies, not both static, at those poses into `self.contacts` (pairs as global
-    triangle indices over the meshes in order, the lower body first), as
+    never paired. `run(rotation, translation)` finds every intersecting pair of triangles
+    of different bodies, not both static, at those poses into `self.contacts` (pairs as
+    global triangle indices over the meshes in order, the lower body first), as
     `CollisionPipeline.run` finds them on the posed vertices. Buffers grow on overflow.
     """
 
