@@ -56,10 +56,28 @@ def box_levels(lo: np.ndarray, hi: np.ndarray, cell_size: float) -> np.ndarray:
     return level
 
 
-# A body's dense grid has at most this many cells per triangle (and at least
-# DENSE_MIN_CELLS in all): its level rises until it fits.
+# A body's dense grids (cells by index, LocalGrid; covered cells, Occupancy) have at most this
+# many cells per triangle, and may have DENSE_MIN_CELLS in all: their cells double until they fit.
 DENSE_CELLS_PER_TRI = 8
 DENSE_MIN_CELLS = 4096
+
+
+def dense_cells_over(lo: np.ndarray, hi: np.ndarray, n_boxes: int, cell_size: float,
+                     level: int = 0) -> tuple[int, np.ndarray, np.ndarray]:
+    """A dense grid over the box [lo, hi] (3,) holding n_boxes boxes: the lowest level from
+    `level` up at which its cells (cell_size·2^level, anchored at the origin) number at most
+    DENSE_CELLS_PER_TRI per box (or DENSE_MIN_CELLS), with one cell more each way than the box
+    needs (the kernels' rounding may differ from NumPy's). Returns (level, first cell (3,) int,
+    cells per axis (3,) int)."""
+    budget = max(DENSE_MIN_CELLS, DENSE_CELLS_PER_TRI * n_boxes)
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    while True:
+        size = cell_size * 2.0 ** level
+        first = np.floor(lo / size).astype(np.int64) - 1
+        dims = np.floor(hi / size).astype(np.int64) + 2 - first
+        if dims.prod() <= budget or level == LEVELS - 1:
+            return level, first, dims
+        level += 1
 
 
 class LocalGrid:
@@ -105,17 +123,8 @@ class LocalGrid:
             if not mine.any():
                 dense_origin[k, 3] = LEVELS  # no level: every lookup goes to the hash table
                 continue
-            lo, hi = box_lo[mine].min(axis=0).astype(np.float64), box_hi[mine].max(axis=0).astype(np.float64)
-            budget = max(DENSE_MIN_CELLS, DENSE_CELLS_PER_TRI * int(mine.sum()))
-            dense = int(level[mine].min())
-            while True:
-                size = cell_size * 2.0 ** dense
-                # One cell more each way than the box needs: the kernel's rounding may differ.
-                first = np.floor(lo / size).astype(np.int64) - 1
-                dims = np.floor(hi / size).astype(np.int64) + 2 - first
-                if dims.prod() <= budget or dense == LEVELS - 1:
-                    break
-                dense += 1
+            dense, first, dims = dense_cells_over(box_lo[mine].min(axis=0), box_hi[mine].max(axis=0),
+                                                  int(mine.sum()), cell_size, int(level[mine].min()))
             dense_origin[k] = [*first, dense]
             dense_dims[k] = [*dims, total]
             total += int(dims.prod())
@@ -166,9 +175,6 @@ class LocalGrid:
         else:
             self.cell_key.fill(-1)
         all_items = np.concatenate([dense_items, h_item[order]]).astype(np.int32)
-        self.entries = len(all_items)
-        self.hashed_cells = len(first)
-        self.dense_cells = total
         self.cell_items = to_ndarray(ti.i32, all_items)
         self.dense_start = to_ndarray(ti.i32, dense_start)
         self.dense_origin = to_ndarray(ivec4, dense_origin.astype(np.int32))
@@ -250,20 +256,14 @@ def to_ndarray(dtype, values) -> ti.Ndarray:
     return arr
 
 
-# A body's occupancy grid has at most this many cells per triangle (and at least
-# OCCUPANCY_MIN_CELLS in all): its cells grow by powers of two until it fits.
-OCCUPANCY_CELLS_PER_TRI = 8
-OCCUPANCY_MIN_CELLS = 4096
-
-
 class Occupancy:
     """Which cells of each body's frame its boxes cover, as a summed-volume table: whether a
     box meets any cell covered by the body is then eight reads, whatever the box's size.
 
     box_lo, box_hi (n, 3), body (n,): boxes in their bodies' frames; cell_size: the smallest
-    cell (scene units; a body's cells double until they fit OCCUPANCY_CELLS_PER_TRI cells per
-    box). A box's cells are computed by the kernel arithmetic `box_occupied` uses, so that a
-    query box meeting a box always meets one of its cells. Holds per body, as Taichi
+    cell (scene units; a body's cells double until they fit, `dense_cells_over`). A box's
+    cells are computed by the kernel arithmetic `box_occupied` uses, so that a query box
+    meeting a box always meets one of its cells. Holds per body, as Taichi
     ndarrays: `origin` (vec3), `inv_cell` (real), `dims` (ivec3: cells per axis) and `offset`
     (i32) into `table`, the (dims + 1) table flattened x-major, table[i, j, k] = covered cells
     in [0, i) × [0, j) × [0, k).
@@ -283,17 +283,10 @@ class Occupancy:
             mine = body == k
             if not mine.any():
                 continue
-            lo, hi = box_lo[mine].astype(np.float64), box_hi[mine].astype(np.float64)
-            budget = max(OCCUPANCY_MIN_CELLS, OCCUPANCY_CELLS_PER_TRI * int(mine.sum()))
-            size = cell_size
-            while True:
-                # A cell of margin each way: the kernel's rounding may differ from NumPy's.
-                origin = lo.min(axis=0) - size
-                dims = np.floor((hi.max(axis=0) - origin) / size).astype(np.int64) + 2
-                if dims.prod() <= budget:
-                    break
-                size *= 2.0
-            origins[k], inv_cells[k], dims_all[k] = origin, 1.0 / size, dims
+            level, first, dims = dense_cells_over(box_lo[mine].min(axis=0), box_hi[mine].max(axis=0),
+                                                  int(mine.sum()), cell_size)
+            size = cell_size * 2.0 ** level
+            origins[k], inv_cells[k], dims_all[k] = first * size, 1.0 / size, dims
         vec3 = ti.types.vector(3, runtime.real_type())
         self.origin = to_ndarray(vec3, origins.astype(real))
         self.inv_cell = to_ndarray(runtime.real_type(), inv_cells.astype(real))
@@ -328,7 +321,6 @@ class Occupancy:
         self.dims = to_ndarray(ivec3, dims_all.astype(np.int32))
         self.offset = to_ndarray(ti.i32, np.array(offsets, np.int32))
         self.table = to_ndarray(ti.i32, np.concatenate(tables))
-        self.cells = int(sum(int(np.prod(d)) for d in dims_all))
 
 
 @ti.func

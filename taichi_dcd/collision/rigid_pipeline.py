@@ -371,7 +371,6 @@ class RigidPipeline:
         new = np.ones(m, bool)
         new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
         first = np.flatnonzero(new)
-        self.n_clusters = len(first)
         vec = ti.types.vector(3, runtime.real_type())
         self.vert_local = to_ndarray(vec, x)
         self.tri = to_ndarray(ivec5, np.column_stack([tri_indices, tri_body, self.grid.level]).astype(np.int32))
