@@ -15,7 +15,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang._ndarray import Ndarray
 
-from . import kernel_cache, pool
+from . import frontend, kernel_cache, pool
 
 ARCHS = ("cpu", "cuda", "vulkan")
 PRECISIONS = ("f32", "f64")
@@ -82,6 +82,7 @@ def init(
         kwargs["device_memory_GB"] = CUDA_POOL_GB
     if offline_cache and (folder := kernel_cache.leased_folder()) is not None:
         kwargs["offline_cache_file_path"] = folder
+    frontend.speed_up()
     ti.init(**kwargs)
     got = ti.lang.impl.current_cfg().arch
     if got != getattr(ti, arch):
@@ -134,8 +135,8 @@ def field_block():
         _block = None
     if placed:
         builder.finalize()
-    for fld, data in fills:
-        fld.from_numpy(data)
+    from .upload import upload  # upload's kernel reads this module's settings
+    upload(fills)
 
 
 def in_field_block() -> bool:

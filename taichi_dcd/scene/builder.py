@@ -15,6 +15,7 @@ import numpy as np
 import trimesh
 
 from ..core import pool, runtime
+from ..core.upload import upload
 from ..contact.hidden_faces import hidden_static_faces
 from ..core.model import (DEFORMABLE_KINDS, KIND_NAMES, MODEL_FIELD_NAMES, RIGID, SOFT, STATE_FIELD_NAMES, STATIC,
                           BodyInfo, Model, State, model_fields)
@@ -237,9 +238,8 @@ class ModelBuilder:
         field_set = pool.acquire(("model", has_soft, bool(cloth_flags.any())), counts,
                                  lambda rows: model_fields(rows, has_soft))
         try:
-            for name, fld in field_set.fields.items():
-                if fld is not None:
-                    fld.from_numpy(pool.padded(data[name], fld.shape[0]))
+            upload([(fld, pool.padded(data[name], fld.shape[0]))
+                    for name, fld in field_set.fields.items() if fld is not None])
             f = field_set.fields
             m = Model(bodies=bodies, n_bodies=n_b, n_vertices=n_v, n_tris=n_t, n_edges=n_e, has_soft=has_soft,
                       **{name: f[name] for name in MODEL_FIELD_NAMES},

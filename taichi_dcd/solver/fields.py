@@ -11,6 +11,7 @@ from ..contact.rules import ContactRules
 from ..contact.cloth import CLOTH_GAP_FRACTION
 from ..contact.soft_rows import SOFT_BOX_MARGIN
 from ..core import pool, runtime
+from ..core.upload import upload
 from ..core.model import (MODEL_FIELD_NAMES, SOFT, STATE_FIELD_NAMES, Model, State, mat_field, scalar_field,
                           vec_field)
 
@@ -176,8 +177,7 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
     }
     if m.has_soft:
         data["tri_sharp_edges"] = sharp_edge_bits(m, rest_x)
-    for name, values in data.items():
-        fields[name].from_numpy(pool.padded(values, fields[name].shape[0]))
+    upload([(fields[name], pool.padded(values, fields[name].shape[0])) for name, values in data.items()])
     if not fresh:
         scratch = [fld for name, fld in fields.items() if name not in data]
         for start in range(0, len(scratch), ZERO_BATCH):

@@ -1,0 +1,141 @@
+"""Taichi's Python frontend made cheaper to repeat, with the same output.
+
+Before Taichi can look a kernel up in its offline cache it turns the kernel's Python source into
+its own IR again, in every process, inlining each `ti.func` at every call. Two pure helpers of
+that pass took more than half of it on the solver's frame kernel (Taichi 1.7):
+
+- the source position of every AST node, formatted as an error-message excerpt (word-wrapped
+  with `textwrap`) whether or not an error ever comes: ~120,000 times per frame kernel;
+- the source lines of every inlined function, read, tokenised and re-filled line by line
+  (`textwrap.fill`) again at each call;
+- and, when a module of kernels is imported, the line above each decorated function, for
+  which Python searches every loaded module for the function's file.
+
+`speed_up()` memoises both. Each memo returns the very string or lines the original returns
+for the same inputs (the key holds every input the original reads), so compiled kernels,
+their cache keys and error messages are unchanged. It patches nothing it does not recognise.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import linecache
+import textwrap
+
+_patched = False
+# The helpers replaced, for tests that compare against them.
+_originals: dict = {}
+
+# Node types whose multi-line position excerpt stops before their body (Taichi's rule).
+_HEADED = ("For", "While", "FunctionDef", "If")
+
+
+def speed_up() -> bool:
+    """Install the memos once per process (idempotent). Returns whether they are installed:
+    False on a Taichi whose frontend does not have the helpers they wrap."""
+    global _patched
+    if _patched:
+        return True
+    try:
+        from taichi.lang import kernel_impl
+        from taichi.lang.ast import ast_transformer_utils as utils
+        context = utils.ASTTransformerContext
+        original_pos_info = context.get_pos_info
+        original_lines = kernel_impl.getsourcelines
+        original_file = kernel_impl.getsourcefile
+    except (ImportError, AttributeError):
+        return False
+
+    _originals.update(get_pos_info=original_pos_info)
+    excerpts: dict = {}
+
+    def get_pos_info(ctx, node):
+        key = _position_key(ctx, node)
+        if key is None:
+            return original_pos_info(ctx, node)
+        text = excerpts.get(key)
+        if text is None:
+            text = excerpts[key] = original_pos_info(ctx, node)
+        return text
+
+    context.get_pos_info = get_pos_info
+    kernel_impl.getsourcelines = _memo_by_function(original_lines)
+    kernel_impl.getsourcefile = _memo_by_function(original_file)
+    if getattr(kernel_impl, "textwrap", None) is textwrap:
+        kernel_impl.textwrap = _ModuleView(textwrap, fill=_remembered_fill())
+    if getattr(kernel_impl, "inspect", None) is inspect:
+        kernel_impl.inspect = _ModuleView(inspect, getframeinfo=_frameinfo_from_linecache)
+    _patched = True
+    return True
+
+
+def _position_key(ctx, node) -> tuple | None:
+    """Everything Taichi's position excerpt of `node` reads: the function's file, first line,
+    name and indent, and the node's span (with its body's first line for a headed node).
+    None where a part is missing (then the original runs)."""
+    try:
+        body_line = node.body[0].lineno if type(node).__name__ in _HEADED and node.body else None
+        return (ctx.file, ctx.lineno_offset, ctx.func.func.__qualname__, ctx.indent,
+                type(node).__name__, node.lineno, node.end_lineno, node.col_offset,
+                node.end_col_offset, body_line)
+    except AttributeError:
+        return None
+
+
+class _ModuleView:
+    """A module as Taichi's kernel_impl sees it: `module` with some functions replaced."""
+
+    def __init__(self, module, **replaced):
+        self._module = module
+        self.__dict__.update(replaced)
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+
+def _remembered_fill():
+    """textwrap.fill remembered per line and settings (Taichi re-fills every source line of a
+    function at each inlined call)."""
+    filled: dict = {}
+
+    def fill(text, **settings):
+        key = (text, tuple(sorted(settings.items())))
+        out = filled.get(key)
+        if out is None:
+            out = filled[key] = textwrap.fill(text, **settings)
+        return out
+
+    return fill
+
+
+def _frameinfo_from_linecache(frame, context=1):
+    """inspect.getframeinfo for one line of context, its source line read from `linecache`
+    by the frame's file name. Taichi's decorators read the line above each kernel and
+    function (is it inside a class?), and inspect searched every loaded module for the
+    frame's file at each one. Other requests, and frames whose line linecache does not
+    have, go to inspect."""
+    line = linecache.getline(frame.f_code.co_filename, frame.f_lineno) if context == 1 else ""
+    if not line:
+        return inspect.getframeinfo(frame, context)
+    return (frame.f_code.co_filename, frame.f_lineno, frame.f_code.co_name, [line], 0)
+
+
+def _memo_by_function(read):
+    """`read(func)` remembered per function object: a module's functions do not change
+    their source while the process runs."""
+    cache: dict = {}
+
+    @functools.wraps(read)
+    def remembered(func):
+        try:
+            return cache[func]
+        except KeyError:
+            pass
+        except TypeError:
+            return read(func)
+        value = cache[func] = read(func)
+        return value
+
+    return remembered
+

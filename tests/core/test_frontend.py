@@ -1,0 +1,100 @@
+"""Taichi's frontend with its pure helpers remembered (core.frontend) gives the same source
+excerpts, error messages and kernels as without, and fields uploaded in batches
+(core.upload) hold exactly what `from_numpy` puts there."""
+
+import inspect
+import sys
+
+import numpy as np
+import pytest
+import taichi as ti
+
+from taichi_dcd.core import frontend
+from taichi_dcd.core.upload import upload
+
+
+@ti.func
+def _scaled(x: ti.f64, k: ti.template()) -> ti.f64:
+    out = x
+    for _ in ti.static(range(k)):
+        out = out * 2.0 + 1.0
+    return out
+
+
+@ti.kernel
+def _twice_inlined(a: ti.f64) -> ti.f64:
+    total = 0.0
+    if a > 0.0:
+        total += _scaled(a, 2)
+    else:
+        total -= _scaled(-a, 3)
+    return total + _scaled(a, 1)
+
+
+def test_every_excerpt_is_the_original(f64, monkeypatch):
+    """Each node's position excerpt, remembered across the inlined calls, is the string
+    Taichi's own helper makes for it."""
+    from taichi.lang.ast import ast_transformer_utils as utils
+
+    assert frontend.speed_up()
+    remembered = utils.ASTTransformerContext.get_pos_info
+    original = frontend._originals["get_pos_info"]
+    seen = []
+
+    def spy(ctx, node):
+        text = remembered(ctx, node)
+        seen.append(text == original(ctx, node))
+        return text
+
+    monkeypatch.setattr(utils.ASTTransformerContext, "get_pos_info", spy)
+    assert _twice_inlined(1.5) == pytest.approx((1.5 * 2 + 1) * 2 + 1 + 1.5 * 2 + 1)
+    assert len(seen) > 50 and all(seen)
+
+
+def test_a_bad_line_is_still_named(f64):
+    @ti.func
+    def bad(x):
+        return x.no_such_member
+
+    @ti.kernel
+    def calls_bad() -> ti.f64:
+        return bad(1.0) + bad(2.0)
+
+    with pytest.raises(Exception) as err:
+        calls_bad()
+    text = str(err.value)
+    assert "return x.no_such_member" in text and __file__ in text
+
+
+def test_frame_line_is_inspects():
+    frame = sys._getframe()
+    assert frontend._frameinfo_from_linecache(frame)[3] == inspect.getframeinfo(frame)[3]
+    assert frontend._frameinfo_from_linecache(frame)[:3] == tuple(inspect.getframeinfo(frame)[:3])
+
+
+@pytest.mark.parametrize("precision", ["f64", "f32"])
+def test_upload_matches_from_numpy(precision):
+    import taichi_dcd
+
+    taichi_dcd.init(arch="cpu", precision=precision, debug=True)
+    real = ti.f64 if precision == "f64" else ti.f32
+    rng = np.random.default_rng(7)
+    shapes = [(ti.field, (real,), (9,), ()), (ti.Vector.field, (3, ti.i32), (5,), (3,)),
+              (ti.Matrix.field, (3, 3, real), (4,), (3, 3)), (ti.field, (ti.i32,), (3, 4), ()),
+              (ti.Vector.field, (4, real), (2, 3), (4,)), (ti.field, (ti.u8,), (6,), ())]
+    ours, theirs, arrays = [], [], []
+    for make, args, shape, element in shapes:
+        ours.append(make(*args, shape=shape))
+        theirs.append(make(*args, shape=shape))
+        dtype = args[-1]
+        if dtype == real:
+            arrays.append(rng.normal(size=shape + element) * 1e3)
+        else:
+            arrays.append(rng.integers(0, 200, size=shape + element).astype(
+                np.uint8 if dtype == ti.u8 else np.int32))
+    upload(list(zip(ours, arrays)))
+    for mine, other, data in zip(ours, theirs, arrays):
+        other.from_numpy(data)
+        assert np.array_equal(mine.to_numpy(), other.to_numpy())
+    with pytest.raises(ValueError):
+        upload([(ours[0], np.zeros(8))])
