@@ -1,8 +1,8 @@
 """Taichi's Python frontend made cheaper to repeat, with the same output.
 
 Before Taichi can look a kernel up in its offline cache it turns the kernel's Python source into
-its own IR again, in every process, inlining each `ti.func` at every call. Two pure helpers of
-that pass took more than half of it on the solver's frame kernel (Taichi 1.7):
+its own IR again, in every process, inlining each `ti.func` at every call. Pure helpers of that
+pass took more than half of it on the solver's frame kernel (Taichi 1.7):
 
 - the source position of every AST node, formatted as an error-message excerpt (word-wrapped
   with `textwrap`) whether or not an error ever comes: ~120,000 times per frame kernel;
@@ -11,7 +11,7 @@ that pass took more than half of it on the solver's frame kernel (Taichi 1.7):
 - and, when a module of kernels is imported, the line above each decorated function, for
   which Python searches every loaded module for the function's file.
 
-`speed_up()` memoises both. Each memo returns the very string or lines the original returns
+`speed_up()` memoises them. Each memo returns the very string or lines the original returns
 for the same inputs (the key holds every input the original reads), so compiled kernels,
 their cache keys and error messages are unchanged. It patches nothing it does not recognise.
 """
@@ -19,11 +19,14 @@ their cache keys and error messages are unchanged. It patches nothing it does no
 from __future__ import annotations
 
 import functools
+import os
 import inspect
 import linecache
 import textwrap
 
 _patched = False
+# Set to 1 to leave Taichi's frontend as it is (to compare, or if a Taichi release breaks a memo).
+PLAIN_ENV = "TAICHI_DCD_PLAIN_FRONTEND"
 # The helpers replaced, for tests that compare against them.
 _originals: dict = {}
 
@@ -37,6 +40,8 @@ def speed_up() -> bool:
     global _patched
     if _patched:
         return True
+    if os.environ.get(PLAIN_ENV) == "1":
+        return False
     try:
         from taichi.lang import kernel_impl
         from taichi.lang.ast import ast_transformer_utils as utils
