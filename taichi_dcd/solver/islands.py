@@ -21,10 +21,6 @@ vec3 = ti.math.vec3
 BLOCK_SWEEPS = 16
 COUPLED_SWEEPS = 128
 COUPLED_TOL = 1e-12
-# sweep_islands shares the islands out among this many loop iterations, each taking the next
-# island until none is left (Taichi 1.7 gives a CPU thread no fewer than 512 of a loop's
-# iterations: fewer would all go to one thread).
-ISLAND_WORKERS = 1024
 
 
 @ti.func
@@ -100,20 +96,7 @@ def solve_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it
     cost a few multiplications a row: converging there is cheap, re-measuring the pose is
     not. Between moving bodies the same holds: projected one at a time, a stack of five
     boxes crept sideways at 3-6e-5 m/s for good (friction between the boxes unconverged
-    at 8 sweeps); in one island it rests. Islands touch no body or row of each other's: the
-    grid path sweeps them in parallel (sweep_islands), to the same bits."""
-    if group_blocks(sim, rows, n_contacts) > 0:
-        for b in range(sim.model.body_count[0]):
-            if sim.block_len[b] > 0:
-                sweep_block(sim, rows, b, it)
-        move_blocks(sim)
-
-
-@ti.func
-def group_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32) -> ti.i32:
-    """solve_blocks' first part (serial): each block row linearised at the bodies' current
-    poses, the islands joined, and each island's rows listed together in row order
-    (block_rows[block_first[root]:][:block_len[root]]). Returns the number of block rows."""
+    at 8 sweeps); in one island it rests."""
     n_b = sim.model.body_count[0]
     for b in range(n_b):
         sim.block_dx[b] = vec3(0.0)
@@ -172,63 +155,16 @@ def group_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32) ->
             if root >= 0:
                 rows.block_rows[sim.block_first[root] + sim.block_len[root]] = k
                 sim.block_len[root] += 1
-    return count
-
-
-@ti.func
-def move_blocks(sim: ti.template()):
-    """Move each rigid body once by its block motion Δx, Δθ."""
-    for b in range(sim.model.body_count[0]):
-        move_block_of(sim, b)
-
-
-@ti.func
-def move_block_of(sim: ti.template(), b: ti.i32):
-    """Move body b (if rigid) by its block motion Δx, Δθ."""
-    if sim.model.body_kind[b] == RIGID:
-        dx, dtheta = sim.block_dx[b], sim.block_dtheta[b]
-        if dx.norm_sqr() + dtheta.norm_sqr() > 0.0:
-            sim.state.body_x[b] += dx
-            sim.body_theta[b] += dtheta
-            sim.state.body_q[b] = rotate_by(sim.state.body_q_prev[b], sim.body_theta[b])
-
-
-@ti.func
-def island_work(sim: ti.template(), root: ti.i32) -> ti.i32:
-    """An upper bound on the row projections of the island rooted at `root` in one sweep:
-    its rows times twice its inner sweeps (sweep_block)."""
-    sweeps = ti.select(sim.block_coupled[root] == 1, COUPLED_SWEEPS, BLOCK_SWEEPS)
-    return sim.block_len[root] * 2 * sweeps
-
-
-@ti.func
-def list_islands(sim: ti.template()) -> ti.i32:
-    """The roots of the islands with rows in island_list, the most work first (insertion
-    sort; equal work by root), and the shared counter island_next at 0 (serial). Returns how
-    many: sweep_islands shares them out."""
-    count = 0
-    for b in range(sim.model.body_count[0]):
-        if sim.block_len[b] > 0:
-            work = island_work(sim, b)
-            j = count
-            while j > 0 and island_work(sim, sim.island_list[j - 1]) < work:
-                sim.island_list[j] = sim.island_list[j - 1]
-                j -= 1
-            sim.island_list[j] = b
-            count += 1
-    sim.island_next[0] = 0
-    return count
-
-
-@ti.func
-def next_island(sim: ti.template(), count: ti.i32) -> ti.i32:
-    """The next of `count` listed islands for a worker to sweep, or -1 when none is left."""
-    i = -1
-    if sim.island_next[0] < count:
-        i = ti.atomic_add(sim.island_next[0], 1)
-        if i >= count:
-            i = -1
-    return i
+        for b in range(n_b):
+            if sim.block_len[b] > 0:
+                sweep_block(sim, rows, b, it)
+        for b in range(n_b):
+            if sim.model.body_kind[b] == RIGID:
+                dx, dtheta = sim.block_dx[b], sim.block_dtheta[b]
+                if dx.norm_sqr() + dtheta.norm_sqr() > 0.0:
+                    sim.state.body_x[b] += dx
+                    sim.body_theta[b] += dtheta
+                    sim.state.body_q[b] = rotate_by(sim.state.body_q_prev[b], sim.body_theta[b])
 
 
 @ti.func

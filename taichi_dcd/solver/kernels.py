@@ -11,18 +11,13 @@ from ..collision.contacts import PairResults
 from ..contact.rows import ContactRows
 from ..contact.sleeping import wake_near
 from .integrate import place_vertex, predict
-from .islands import ISLAND_WORKERS, group_blocks, list_islands, move_block_of, next_island, sweep_block
 from .substep import (
-    finish_rows,
-    project_begin,
     restore_state,
     rows_at_state,
-    rows_from_pairs,
     save_state,
     state_is_sane,
     substep_all_pairs,
     substep_from_pairs,
-    sweep_rows,
 )
 from .summary import substeps_suffice, summarize_bodies
 
@@ -146,117 +141,6 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
             place_vertex(sim, i)
         status = state_is_sane(sim, centre, bound, top_speed)
     return ti.Vector([n, status])
-
-
-# The grid path's substep in parallel islands: the same functions as end_substep in the same
-# order, but each sweep's islands shared out among threads (solver.Solver._step_grid). Each
-# island's sweep touches only its own bodies and rows, so the result is the same bits as
-# end_substep's on any number of threads.
-
-@ti.kernel
-def begin_rows(sim: ti.template(), depenetration: float, h: float, n_pairs: ti.i32,
-                 p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
-                 p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
-                 p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
-    """The substep's rows from the grid's contacts and what the projection's sweeps share
-    (serial). Returns the rows to solve."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-    pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
-    n = 0
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        n = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
-        project_begin(sim, rows, n)
-    return n
-
-@ti.kernel
-def begin_sweep(sim: ti.template(), n: ti.i32, it: ti.i32, h: float,
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
-    """Sweep `it`'s serial part: soft constraints, the rows not in blocks, the block rows
-    linearised and grouped into islands. Returns the islands to sweep."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-    count = 0
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        sweep_rows(sim, rows, n, it, h)
-        if group_blocks(sim, rows, n) > 0:
-            count = list_islands(sim)
-    return count
-
-@ti.kernel
-def sweep_islands(sim: ti.template(), count: ti.i32, it: ti.i32,
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    """Each of the `count` listed islands swept by one worker, the workers in parallel (each
-    takes the next island until none is left); then each rigid body moved by its block."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-    for _ in range(ISLAND_WORKERS):
-        i = next_island(sim, count)
-        while i >= 0:
-            sweep_block(sim, rows, sim.island_list[i], it)
-            i = next_island(sim, count)
-    for b in range(sim.model.body_count[0]):
-        move_block_of(sim, b)
-
-@ti.kernel
-def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm: float, depenetration: float,
-                 centre: vec3, bound: float, top_speed: float,
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
-    """After the sweeps (serial): velocities, the velocity pass, carried rows, sleep, the
-    vertices placed and the state checked (state_is_sane's status)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-    status = 0
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        finish_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
-        for i in range(sim.model.vertex_count[0]):
-            place_vertex(sim, i)
-        status = state_is_sane(sim, centre, bound, top_speed)
-    return status
 
 @ti.kernel
 def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
