@@ -40,6 +40,12 @@ _LAYOUT = {
     # Islands of rigid bodies joined by rows between them (union-find: each body's
     # parent, the root its own), and 1 at the root of an island of several bodies.
     "block_island": ("bodies", "int"), "block_coupled": ("bodies", "int"),
+    # The roots of the islands with rows, the most work first, and the next one for a worker
+    # to take (solver.islands.list_islands, solver.kernels.solve_islands).
+    "island_list": ("bodies", "int"), "island_next": ("one", "int"),
+    # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].
+    "island_bodies": ("bodies", "int"), "island_body_first": ("bodies", "int"),
+    "island_body_count": ("bodies", "int"),
     "body_thickness": ("bodies", "scalar"),
     "body_reach": ("bodies", "scalar"),  # farthest vertex from a rigid body's centre (m)
     # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),

@@ -21,6 +21,10 @@ vec3 = ti.math.vec3
 BLOCK_SWEEPS = 16
 COUPLED_SWEEPS = 128
 COUPLED_TOL = 1e-12
+# kernels.solve_islands shares the islands out among this many loop iterations, each taking the next
+# island until none is left (Taichi 1.7 gives a CPU thread no fewer than 512 of a loop's
+# iterations: fewer would all go to one thread).
+ISLAND_WORKERS = 1024
 
 
 @ti.func
@@ -96,7 +100,20 @@ def solve_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it
     cost a few multiplications a row: converging there is cheap, re-measuring the pose is
     not. Between moving bodies the same holds: projected one at a time, a stack of five
     boxes crept sideways at 3-6e-5 m/s for good (friction between the boxes unconverged
-    at 8 sweeps); in one island it rests."""
+    at 8 sweeps); in one island it rests. Islands touch no body or row of each other's: the
+    grid path solves them side by side (solve_island), to the same bits."""
+    if group_blocks(sim, rows, n_contacts) > 0:
+        for b in range(sim.model.body_count[0]):
+            if sim.block_len[b] > 0:
+                sweep_block(sim, rows, b, it)
+        move_blocks(sim)
+
+
+@ti.func
+def group_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32) -> ti.i32:
+    """solve_blocks' first part (serial): each block row linearised at the bodies' current
+    poses, the islands joined, and each island's rows listed together in row order
+    (block_rows[block_first[root]:][:block_len[root]]). Returns the number of block rows."""
     n_b = sim.model.body_count[0]
     for b in range(n_b):
         sim.block_dx[b] = vec3(0.0)
@@ -106,33 +123,10 @@ def solve_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it
         sim.block_coupled[b] = 0
     count = 0
     for k in range(n_contacts):
-        b = block_body(sim, rows, k)
-        pair = pair_block(sim, rows, k)
-        if b >= 0 or pair:
-            tri = rows.tri[k]
-            bm, bo = rows.bary_moved[k], rows.bary_other[k]
-            n = rows.normal[k]
-            p_m = anchor_world(sim, tri[0], bm, False)
-            p_o = anchor_world(sim, tri[1], bo, False)
-            rows.block_gap[k] = n.dot(p_o - p_m)
-            slip = (p_m - anchor_world(sim, tri[0], bm, True)) - (p_o - anchor_world(sim, tri[1], bo, True))
-            rows.block_slip[k] = slip - slip.dot(n) * n
-            p_c = 0.5 * (p_m + p_o)
-            if b >= 0:
-                r = p_c - sim.state.body_x_prev[b]
-                rows.block_lever[k] = r
-                rows.block_k[k] = inv_mass_matrix_world(sim.model.body_inv_mass[b], sim.block_inv_inertia[b], r)
-            else:
-                body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
-                join_islands(sim, body_m, body_o)
-                r_m = p_c - sim.state.body_x_prev[body_m]
-                r_o = p_c - sim.state.body_x_prev[body_o]
-                rows.block_lever[k] = r_m
-                f_m, f_o = takes_part(sim, tri[0], tri[1]), takes_part(sim, tri[1], tri[0])
-                rows.block_k[k] = (f_m * inv_mass_matrix_world(sim.model.body_inv_mass[body_m],
-                                                      sim.block_inv_inertia[body_m], r_m)
-                          + f_o * inv_mass_matrix_world(sim.model.body_inv_mass[body_o],
-                                                        sim.block_inv_inertia[body_o], r_o))
+        if block_body(sim, rows, k) >= 0 or pair_block(sim, rows, k):
+            linearise_row(sim, rows, k)
+            if pair_block(sim, rows, k):
+                join_islands(sim, sim.model.tri_body[rows.tri[k][0]], sim.model.tri_body[rows.tri[k][1]])
             count += 1
     if count > 0:
         # Each island's rows together, in row order (a counting sort by island root): a
@@ -155,16 +149,134 @@ def solve_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it
             if root >= 0:
                 rows.block_rows[sim.block_first[root] + sim.block_len[root]] = k
                 sim.block_len[root] += 1
-        for b in range(n_b):
-            if sim.block_len[b] > 0:
-                sweep_block(sim, rows, b, it)
-        for b in range(n_b):
-            if sim.model.body_kind[b] == RIGID:
-                dx, dtheta = sim.block_dx[b], sim.block_dtheta[b]
-                if dx.norm_sqr() + dtheta.norm_sqr() > 0.0:
-                    sim.state.body_x[b] += dx
-                    sim.body_theta[b] += dtheta
-                    sim.state.body_q[b] = rotate_by(sim.state.body_q_prev[b], sim.body_theta[b])
+    return count
+
+
+@ti.func
+def linearise_row(sim: ti.template(), rows: ti.template(), k: ti.i32):
+    """Block row k at the bodies' current poses: its gap and tangential slip, its lever from
+    the moved body's centre, and its 3×3 inverse mass (both bodies' for a row between rigid
+    bodies)."""
+    b = block_body(sim, rows, k)
+    tri = rows.tri[k]
+    bm, bo = rows.bary_moved[k], rows.bary_other[k]
+    n = rows.normal[k]
+    p_m = anchor_world(sim, tri[0], bm, False)
+    p_o = anchor_world(sim, tri[1], bo, False)
+    rows.block_gap[k] = n.dot(p_o - p_m)
+    slip = (p_m - anchor_world(sim, tri[0], bm, True)) - (p_o - anchor_world(sim, tri[1], bo, True))
+    rows.block_slip[k] = slip - slip.dot(n) * n
+    p_c = 0.5 * (p_m + p_o)
+    if b >= 0:
+        r = p_c - sim.state.body_x_prev[b]
+        rows.block_lever[k] = r
+        rows.block_k[k] = inv_mass_matrix_world(sim.model.body_inv_mass[b], sim.block_inv_inertia[b], r)
+    else:
+        body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
+        r_m = p_c - sim.state.body_x_prev[body_m]
+        r_o = p_c - sim.state.body_x_prev[body_o]
+        rows.block_lever[k] = r_m
+        f_m, f_o = takes_part(sim, tri[0], tri[1]), takes_part(sim, tri[1], tri[0])
+        rows.block_k[k] = (f_m * inv_mass_matrix_world(sim.model.body_inv_mass[body_m],
+                                              sim.block_inv_inertia[body_m], r_m)
+                  + f_o * inv_mass_matrix_world(sim.model.body_inv_mass[body_o],
+                                                sim.block_inv_inertia[body_o], r_o))
+
+
+@ti.func
+def move_blocks(sim: ti.template()):
+    """Move each rigid body once by its block motion Δx, Δθ."""
+    for b in range(sim.model.body_count[0]):
+        move_block_of(sim, b)
+
+
+@ti.func
+def move_block_of(sim: ti.template(), b: ti.i32):
+    """Move body b (if rigid) by its block motion Δx, Δθ. (Here and in the islands' sweeps a
+    field is updated as `a = a + b`, not `a += b`: in a parallel loop Taichi makes the latter
+    an atomic add, ~5 times the cost, and an island is only ever swept by one worker.)"""
+    if sim.model.body_kind[b] == RIGID:
+        dx, dtheta = sim.block_dx[b], sim.block_dtheta[b]
+        if dx.norm_sqr() + dtheta.norm_sqr() > 0.0:
+            sim.state.body_x[b] = sim.state.body_x[b] + dx
+            sim.body_theta[b] = sim.body_theta[b] + dtheta
+            sim.state.body_q[b] = rotate_by(sim.state.body_q_prev[b], sim.body_theta[b])
+
+
+@ti.func
+def island_work(sim: ti.template(), root: ti.i32) -> ti.i32:
+    """An upper bound on the row projections of the island rooted at `root` in one sweep:
+    its rows times twice its inner sweeps (sweep_block)."""
+    sweeps = ti.select(sim.block_coupled[root] == 1, COUPLED_SWEEPS, BLOCK_SWEEPS)
+    return sim.block_len[root] * 2 * sweeps
+
+
+@ti.func
+def list_islands(sim: ti.template()) -> ti.i32:
+    """The roots of the islands with rows in island_list, the most work first (insertion
+    sort; equal work by root), and the shared counter island_next at 0 (serial). Returns how
+    many: kernels.solve_islands shares them out."""
+    count = 0
+    for b in range(sim.model.body_count[0]):
+        if sim.block_len[b] > 0:
+            work = island_work(sim, b)
+            j = count
+            while j > 0 and island_work(sim, sim.island_list[j - 1]) < work:
+                sim.island_list[j] = sim.island_list[j - 1]
+                j -= 1
+            sim.island_list[j] = b
+            count += 1
+    # Each listed island's rigid bodies together (a counting sort by root).
+    n_b = sim.model.body_count[0]
+    for b in range(n_b):
+        sim.island_body_count[b] = 0
+    for b in range(n_b):
+        if sim.model.body_kind[b] == RIGID:
+            sim.island_body_count[sim.block_island[b]] += 1
+    first = 0
+    for b in range(n_b):
+        sim.island_body_first[b] = first
+        first += sim.island_body_count[b]
+        sim.island_body_count[b] = 0
+    for b in range(n_b):
+        if sim.model.body_kind[b] == RIGID:
+            root = sim.block_island[b]
+            sim.island_bodies[sim.island_body_first[root] + sim.island_body_count[root]] = b
+            sim.island_body_count[root] += 1
+    sim.island_next[0] = 0
+    return count
+
+
+@ti.func
+def solve_island(sim: ti.template(), rows: ti.template(), root: ti.i32, iterations: ti.i32):
+    """All `iterations` sweeps of the island rooted at `root`, as solve_blocks makes them in a
+    scene whose rows are all block rows (no soft body): each sweep after the first linearises
+    the island's rows again at its bodies' poses; each ends with its bodies moved. Islands
+    share no body or row, so each can go on to its next sweep alone."""
+    first_row, n_rows = sim.block_first[root], sim.block_len[root]
+    first_body, n_bodies = sim.island_body_first[root], sim.island_body_count[root]
+    for it in range(iterations):
+        if it > 0:
+            for j in range(n_bodies):
+                b = sim.island_bodies[first_body + j]
+                sim.block_dx[b] = vec3(0.0)
+                sim.block_dtheta[b] = vec3(0.0)
+            for j in range(n_rows):
+                linearise_row(sim, rows, rows.block_rows[first_row + j])
+        sweep_block(sim, rows, root, it)
+        for j in range(n_bodies):
+            move_block_of(sim, sim.island_bodies[first_body + j])
+
+
+@ti.func
+def next_island(sim: ti.template(), count: ti.i32) -> ti.i32:
+    """The next of `count` listed islands for a worker to sweep, or -1 when none is left."""
+    i = -1
+    if sim.island_next[0] < count:
+        i = ti.atomic_add(sim.island_next[0], 1)
+        if i >= count:
+            i = -1
+    return i
 
 
 @ti.func
@@ -227,7 +339,7 @@ def project_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, fricti
         impulse = push * n - (new_t - old_t)
         rows.lambda_n[k] = lam_n
         rows.lambda_t[k] = new_t
-        rows.budget[k] -= n.dot(k_mat @ impulse)
+        rows.budget[k] = rows.budget[k] - n.dot(k_mat @ impulse)
     return impulse
 
 
@@ -247,10 +359,10 @@ def solve_pair_row(sim: ti.template(), rows: ti.template(), k: ti.i32, friction:
     moved_by = (rows.block_k[k] @ impulse).norm()
     if moved_by > 0.0:
         f_m, f_o = takes_part(sim, tri[0], tri[1]), takes_part(sim, tri[1], tri[0])
-        sim.block_dx[body_m] += f_m * sim.model.body_inv_mass[body_m] * impulse
-        sim.block_dtheta[body_m] += f_m * (sim.block_inv_inertia[body_m] @ r_m.cross(impulse))
-        sim.block_dx[body_o] -= f_o * sim.model.body_inv_mass[body_o] * impulse
-        sim.block_dtheta[body_o] -= f_o * (sim.block_inv_inertia[body_o] @ r_o.cross(impulse))
+        sim.block_dx[body_m] = sim.block_dx[body_m] + f_m * sim.model.body_inv_mass[body_m] * impulse
+        sim.block_dtheta[body_m] = sim.block_dtheta[body_m] + f_m * (sim.block_inv_inertia[body_m] @ r_m.cross(impulse))
+        sim.block_dx[body_o] = sim.block_dx[body_o] - f_o * sim.model.body_inv_mass[body_o] * impulse
+        sim.block_dtheta[body_o] = sim.block_dtheta[body_o] - f_o * (sim.block_inv_inertia[body_o] @ r_o.cross(impulse))
     return moved_by
 
 
@@ -270,6 +382,6 @@ def solve_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, b: ti.i3
     moved_by = (rows.block_k[k] @ impulse).norm()
     if moved_by > 0.0:
         body_impulse = sign * impulse
-        sim.block_dx[b] += sim.model.body_inv_mass[b] * body_impulse
-        sim.block_dtheta[b] += sim.block_inv_inertia[b] @ r.cross(body_impulse)
+        sim.block_dx[b] = sim.block_dx[b] + sim.model.body_inv_mass[b] * body_impulse
+        sim.block_dtheta[b] = sim.block_dtheta[b] + sim.block_inv_inertia[b] @ r.cross(body_impulse)
     return moved_by

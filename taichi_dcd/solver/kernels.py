@@ -11,9 +11,13 @@ from ..collision.contacts import PairResults
 from ..contact.rows import ContactRows
 from ..contact.sleeping import wake_near
 from .integrate import place_vertex, predict
+from .islands import ISLAND_WORKERS, group_blocks, list_islands, next_island, solve_island
 from .substep import (
+    finish_rows,
+    project_begin,
     restore_state,
     rows_at_state,
+    rows_from_pairs,
     save_state,
     state_is_sane,
     substep_all_pairs,
@@ -141,6 +145,95 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
             place_vertex(sim, i)
         status = state_is_sane(sim, centre, bound, top_speed)
     return ti.Vector([n, status])
+
+
+# The grid path's substep with the islands solved side by side, in a scene of rigid and static
+# bodies only (every row a block row): end_substep's functions in the same order per island,
+# each island taken by one worker through all its sweeps (solver.Solver._step_grid). An island
+# touches only its own bodies and rows, so the result is end_substep's bits on any number of
+# threads, in three launches a substep.
+
+@ti.kernel
+def begin_rows(sim: ti.template(), depenetration: float, h: float, n_pairs: ti.i32,
+                 p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
+                 p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
+                 p_point: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_vn0: ti.types.ndarray(ndim=1),
+                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_gap: ti.types.ndarray(ndim=1),
+                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+    """The substep's rows from the grid's contacts, what the sweeps share, the rows linearised
+    for the first sweep and grouped into islands, the islands listed (serial). Returns (rows,
+    islands)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
+    n = 0
+    count = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        n = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
+        project_begin(sim, rows, n)
+        if group_blocks(sim, rows, n) > 0:
+            count = list_islands(sim)
+    return ti.Vector([n, count])
+
+@ti.kernel
+def solve_islands(sim: ti.template(), count: ti.i32, iterations: ti.i32,
+                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_vn0: ti.types.ndarray(ndim=1),
+                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_gap: ti.types.ndarray(ndim=1),
+                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """Each of the `count` listed islands through all its sweeps by one worker, the workers in
+    parallel, each taking the next island until none is left (islands.solve_island)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    for _ in range(ISLAND_WORKERS):
+        i = next_island(sim, count)
+        while i >= 0:
+            solve_island(sim, rows, sim.island_list[i], iterations)
+            i = next_island(sim, count)
+
+@ti.kernel
+def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm: float, depenetration: float,
+                 centre: vec3, bound: float, top_speed: float,
+                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 c_vn0: ti.types.ndarray(ndim=1),
+                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                 b_gap: ti.types.ndarray(ndim=1),
+                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
+    """After the sweeps (serial): velocities, the velocity pass, carried rows, sleep, the
+    vertices placed and the state checked (state_is_sane's status)."""
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
+                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    status = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        finish_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+        for i in range(sim.model.vertex_count[0]):
+            place_vertex(sim, i)
+        status = state_is_sane(sim, centre, bound, top_speed)
+    return status
 
 @ti.kernel
 def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),

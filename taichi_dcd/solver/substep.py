@@ -32,6 +32,16 @@ def project(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, iterati
     """Gauss-Seidel sweeps over contacts and soft constraints (serial: call inside a serial
     loop); each sweep ends with the rows of rigid bodies (against static bodies and between
     each other) solved in blocks, one per island of touching bodies (solve_blocks)."""
+    project_begin(sim, rows, n_contacts)
+    for it in range(iterations):
+        sweep_rows(sim, rows, n_contacts, it, h)
+        solve_blocks(sim, rows, n_contacts, it)
+
+
+@ti.func
+def project_begin(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32):
+    """What the projection's sweeps share (serial): each body's level in the contact graph,
+    the rigid bodies' world inverse inertia at the substep's start, the edges' λ zeroed."""
     compute_levels(sim, rows, n_contacts)
     # The blocks' turns act through the inverse inertia at the substep's start
     # (apply_positional_impulse), the same for every sweep.
@@ -42,23 +52,26 @@ def project(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, iterati
     if ti.static(sim.model.has_soft):
         for e in range(sim.model.edge_count[0]):
             sim.edge_lambda[e] = 0.0
-    for it in range(iterations):
-        if ti.static(sim.model.has_soft):
-            for e in range(sim.model.edge_count[0]):
-                solve_edge(sim, e, h)
-            for b in range(sim.model.body_count[0]):
-                solve_volume(sim, b)
-        # Normals first, then friction on the slip they leave; the sweeps alternate
-        # direction so that no contact is always last.
-        for j in range(n_contacts):
-            k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
-            if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
-                solve_contact_normal(sim, rows, k)
-        for j in range(n_contacts):
-            k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
-            if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
-                solve_contact_friction(sim, rows, k)
-        solve_blocks(sim, rows, n_contacts, it)
+
+
+@ti.func
+def sweep_rows(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32, it: ti.i32, h: float):
+    """Sweep `it` over the soft constraints and the rows that are not in blocks (serial)."""
+    if ti.static(sim.model.has_soft):
+        for e in range(sim.model.edge_count[0]):
+            solve_edge(sim, e, h)
+        for b in range(sim.model.body_count[0]):
+            solve_volume(sim, b)
+    # Normals first, then friction on the slip they leave; the sweeps alternate
+    # direction so that no contact is always last.
+    for j in range(n_contacts):
+        k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+        if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
+            solve_contact_normal(sim, rows, k)
+    for j in range(n_contacts):
+        k = ti.select(it % 2 == 0, j, n_contacts - 1 - j)
+        if block_body(sim, rows, k) < 0 and not pair_block(sim, rows, k):
+            solve_contact_friction(sim, rows, k)
 
 
 @ti.func
@@ -83,6 +96,14 @@ def solve_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, iterations: t
     """The rest of a substep on its n rows (Müller 2020, Alg. 2, lines 9-17): projection,
     velocities, the velocity pass, and the rows to carry to the next substep (serial)."""
     project(sim, rows, n, iterations, h)
+    finish_rows(sim, rows, n, iterations, h, g_norm, max_push)
+
+
+@ti.func
+def finish_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm: float,
+                max_push: float):
+    """After the projection (serial): velocities, the velocity pass, the rows to carry to the
+    next substep, and sleep."""
     update_velocities(sim, h)
     solve_velocities(sim, rows, n, iterations, h, g_norm)
     if ti.static(sim.rules.carried_rows):
@@ -130,15 +151,24 @@ def substep_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.templa
     """The same substep after the grid's narrow phase (its n_pairs results in `pairs`, a
     collision.contacts.Contacts' arrays: pair, side, depth, normal, point); predict ran in its own
     kernel. Returns the rows solved (serial)."""
+    n = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
+    solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+    return n
+
+
+@ti.func
+def rows_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.template(), n_pairs: ti.i32,
+                    max_push: float) -> ti.i32:
+    """A substep's rows from the grid's narrow-phase results, then every rule's rows after them
+    (serial). Returns the rows to solve."""
     forget_rows(sim)
     n = 0
     for k in range(n_pairs):
         pair = pairs.pair[k]
         if is_moving(sim, sim.model.tri_body[pair[0]]) or is_moving(sim, sim.model.tri_body[pair[1]]):
             n = add_pair_contact(sim, rows, n, pair, ti.cast(pairs.side[k], ti.i32), pairs.depth[k],
-                                 pairs.normal[k], pairs.point[k], depenetration * h)
-    _, n = rows_after_pairs(sim, rows, n, depenetration * h)
-    solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+                                 pairs.normal[k], pairs.point[k], max_push)
+    _, n = rows_after_pairs(sim, rows, n, max_push)
     return n
 
 
