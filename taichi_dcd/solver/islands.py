@@ -139,11 +139,7 @@ def group_blocks(sim: ti.template(), rows: ti.template(), n_contacts: ti.i32) ->
             root = row_island(sim, rows, k)
             if root >= 0:
                 sim.block_len[root] += 1
-        first = 0
-        for b in range(n_b):
-            sim.block_first[b] = first
-            first += sim.block_len[b]
-            sim.block_len[b] = 0
+        starts_from_counts(sim.block_len, sim.block_first, n_b)
         for k in range(n_contacts):
             root = row_island(sim, rows, k)
             if root >= 0:
@@ -181,6 +177,17 @@ def linearise_row(sim: ti.template(), rows: ti.template(), k: ti.i32):
                                               sim.block_inv_inertia[body_m], r_m)
                   + f_o * inv_mass_matrix_world(sim.model.body_inv_mass[body_o],
                                                 sim.block_inv_inertia[body_o], r_o))
+
+
+@ti.func
+def starts_from_counts(counts: ti.template(), starts: ti.template(), n: ti.i32):
+    """A counting sort's middle step (serial): starts[i] = counts[0] + ... + counts[i-1], and
+    counts zeroed for the placing pass to count again."""
+    first = 0
+    for i in range(n):
+        starts[i] = first
+        first += counts[i]
+        counts[i] = 0
 
 
 @ti.func
@@ -233,11 +240,7 @@ def list_islands(sim: ti.template()) -> ti.i32:
     for b in range(n_b):
         if sim.model.body_kind[b] == RIGID:
             sim.island_body_count[sim.block_island[b]] += 1
-    first = 0
-    for b in range(n_b):
-        sim.island_body_first[b] = first
-        first += sim.island_body_count[b]
-        sim.island_body_count[b] = 0
+    starts_from_counts(sim.island_body_count, sim.island_body_first, n_b)
     for b in range(n_b):
         if sim.model.body_kind[b] == RIGID:
             root = sim.block_island[b]
