@@ -36,6 +36,15 @@ NEEDS_CHOICE = 1
 OVERFLOW = 2
 
 
+@ti.func
+def placed_and_checked(sim: ti.template(), centre: vec3, bound: float, top_speed: float) -> ti.i32:
+    """The grid path's substep end (serial): every vertex placed at its body's pose, then
+    state_is_sane's status."""
+    for i in range(sim.model.vertex_count[0]):
+        place_vertex(sim, i)
+    return state_is_sane(sim, centre, bound, top_speed)
+
+
 @ti.kernel
 def summarize_kernel(sim: ti.template()):
     ti.loop_config(serialize=True)  # on the launching thread: a parallel task costs ~30 µs to start
@@ -141,9 +150,7 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
     ti.loop_config(serialize=True)
     for _ in range(1):
         n = substep_from_pairs(sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
-        for i in range(sim.model.vertex_count[0]):
-            place_vertex(sim, i)
-        status = state_is_sane(sim, centre, bound, top_speed)
+        status = placed_and_checked(sim, centre, bound, top_speed)
     return ti.Vector([n, status])
 
 
@@ -230,9 +237,7 @@ def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm
     ti.loop_config(serialize=True)
     for _ in range(1):
         finish_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
-        for i in range(sim.model.vertex_count[0]):
-            place_vertex(sim, i)
-        status = state_is_sane(sim, centre, bound, top_speed)
+        status = placed_and_checked(sim, centre, bound, top_speed)
     return status
 
 @ti.kernel

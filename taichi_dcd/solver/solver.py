@@ -17,10 +17,10 @@ One substep of length h:
 
 Contacts are projected serially (Gauss-Seidel), which is race-free and stays stable
 with hundreds of contacts on one body; on the grid path the islands of touching rigid
-bodies, which share no body, are swept side by side on several threads, to the same bits. Velocities are staggered half a substep
-(leapfrog): the very first predict of a run adds only h/2·a, so free flight under
-constant acceleration reproduces x0 + v0·t + a·t²/2 exactly, not with the O(h)
-error of symplectic Euler.
+bodies, which share no body, are solved side by side on several threads, to the same bits.
+Velocities are staggered half a substep (leapfrog): the very first predict of a run adds
+only h/2·a, so free flight under constant acceleration reproduces x0 + v0·t + a·t²/2
+exactly, not with the O(h) error of symplectic Euler.
 
 Small scenes run a whole frame (all its substeps) in one kernel with an in-kernel
 all-pairs box test; large ones use the uniform-grid `CollisionPipeline` each substep.
@@ -39,9 +39,9 @@ from ..contact.rules import ContactRules
 from ..contact.soft_rows import RESTING_ROWS_PER_SOFT_VERTEX
 from ..contact.vertex_rows import VERTEX_ROWS_PER_PAIR, VERTEX_ROWS_PER_PAIR_SOFT
 from ..core import runtime
+from ..core.launch import Launcher
 from ..core.model import RIGID, STATIC, Model, State
 from .fields import solver_fields
-from ..core.launch import Launcher
 from .kernels import (
     OVERFLOW,
     begin_rows,
@@ -334,7 +334,7 @@ class XPBDSolver:
                 n, status = self._solve_in_islands(pc, iterations, h, g_norm, top_speed)
             else:
                 n, status = (int(v) for v in end_substep(
-                    self.sim, iterations, h, g_norm, ti.Vector(list(self.scene_centre)), self.bound, top_speed,
+                    self.sim, iterations, h, g_norm, self.centre_vec, self.bound, top_speed,
                     self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
                     *self.contacts.arrays()))
             if timing is not None:
