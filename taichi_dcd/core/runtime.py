@@ -15,7 +15,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang._ndarray import Ndarray
 
-from . import frontend, kernel_cache, pool
+from . import frontend, kernel_cache, pool, traced_ops
 
 ARCHS = ("cpu", "cuda", "vulkan")
 PRECISIONS = ("f32", "f64")
@@ -83,6 +83,7 @@ def init(
     if offline_cache and (folder := kernel_cache.leased_folder()) is not None:
         kwargs["offline_cache_file_path"] = folder
     frontend.speed_up()
+    traced_ops.install()
     ti.init(**kwargs)
     got = ti.lang.impl.current_cfg().arch
     if got != getattr(ti, arch):
