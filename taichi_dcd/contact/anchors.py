@@ -1,7 +1,8 @@
 """Anchors: points tied to a triangle by barycentric weights, on a soft body's particles or
 a rigid body's pose. Where such a point is, how fast it moves, its generalised inverse mass
 along a direction, and how an impulse there moves its body; every contact row is a pair of
-anchors. Each function takes `sim`, the solver's fields (solver.fields.SolverFields)."""
+anchors. Each function takes `sim`, the solver's fields (solver.fields.SolverFields); a
+scene without soft bodies compiles none of their branches (`model.has_soft`)."""
 
 import taichi as ti
 
@@ -26,11 +27,12 @@ def anchor_world(sim: ti.template(), t: ti.i32, bary: vec3, prev: ti.template())
     idx = sim.model.tri_indices[t]
     p = vec3(0.0)
     if sim.model.body_kind[b] == SOFT:
-        for k in ti.static(range(3)):
-            if ti.static(prev):
-                p += bary[k] * sim.state.vertex_x_prev[idx[k]]
-            else:
-                p += bary[k] * sim.state.vertex_x[idx[k]]
+        if ti.static(sim.model.has_soft):
+            for k in ti.static(range(3)):
+                if ti.static(prev):
+                    p += bary[k] * sim.state.vertex_x_prev[idx[k]]
+                else:
+                    p += bary[k] * sim.state.vertex_x[idx[k]]
     else:
         r = bary[0] * sim.model.vertex_local[idx[0]] + bary[1] * sim.model.vertex_local[idx[1]] + bary[2] * sim.model.vertex_local[idx[2]]
         if ti.static(prev):
@@ -65,8 +67,9 @@ def anchor_inv_mass(sim: ti.template(), t: ti.i32, bary: vec3, p: vec3, n: vec3)
     w = 0.0
     kind = sim.model.body_kind[b]
     if kind == SOFT:
-        for k in ti.static(range(3)):
-            w += bary[k] * bary[k] * sim.model.vertex_inv_mass[idx[k]]
+        if ti.static(sim.model.has_soft):
+            for k in ti.static(range(3)):
+                w += bary[k] * bary[k] * sim.model.vertex_inv_mass[idx[k]]
     elif kind == RIGID:
         w = generalized_inv_mass(sim.model.body_inv_mass[b], sim.state.body_q[b],
                                  sim.model.body_inv_inertia[b], p - sim.state.body_x[b], n)
@@ -80,8 +83,9 @@ def anchor_move(sim: ti.template(), t: ti.i32, bary: vec3, p: vec3, impulse: vec
     idx = sim.model.tri_indices[t]
     kind = sim.model.body_kind[b]
     if kind == SOFT:
-        for k in ti.static(range(3)):
-            sim.state.vertex_x[idx[k]] += sim.model.vertex_inv_mass[idx[k]] * bary[k] * impulse
+        if ti.static(sim.model.has_soft):
+            for k in ti.static(range(3)):
+                sim.state.vertex_x[idx[k]] += sim.model.vertex_inv_mass[idx[k]] * bary[k] * impulse
     elif kind == RIGID:
         # The lever from the substep's starting centre: with the body's end velocity
         # (x − x_prev)/h, that is what keeps angular momentum about any point exact.
@@ -149,5 +153,8 @@ def target_inside(sim: ti.template(), t_moved: ti.i32, target: vec3) -> bool:
 
 @ti.func
 def involves_soft(sim: ti.template(), t_a: ti.i32, t_b: ti.i32) -> bool:
-    return (sim.model.body_kind[sim.model.tri_body[t_a]] == SOFT
-            or sim.model.body_kind[sim.model.tri_body[t_b]] == SOFT)
+    soft = False
+    if ti.static(sim.model.has_soft):
+        soft = (sim.model.body_kind[sim.model.tri_body[t_a]] == SOFT
+                or sim.model.body_kind[sim.model.tri_body[t_b]] == SOFT)
+    return soft
