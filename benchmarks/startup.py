@@ -1,9 +1,11 @@
 """How long a run takes to start: `taichi-dcd run SCENE` timed from the command to its first
 simulated frame on disk (frames/frame_00001.png), Taichi's kernel cache warm, with
-taichi_dcd's frontend memos (core.frontend) and without them (TAICHI_DCD_PLAIN_FRONTEND=1),
-taking turns. Then one process's parts, timed inside it: importing and starting Taichi,
-building the scene, rendering frame 0 and the first step (which turns the frame kernel's
-source into Taichi's IR and loads its compiled code from the cache).
+taichi_dcd's changes to Taichi's frontend (core.frontend's memos, core.traced_ops' vector
+helpers) and without them (TAICHI_DCD_PLAIN_FRONTEND=1), taking turns. Then one process's
+parts, timed inside it: importing and starting Taichi, building the scene, rendering frame 0
+and the first step (which turns the frame kernel's source into Taichi's IR and loads its
+compiled code from the cache); and, untimed, how many AST nodes Taichi's frontend visits in
+that first step (a count that does not vary with the machine's load).
 
 An untimed run first fills the kernel cache. Prints medians (and the fastest) over --repeat
 runs and the machine.
@@ -45,6 +47,25 @@ print(json.dumps({"import and init": t1 - t0, "build": t2 - t1, "frame 0": t3 - 
 """
 
 
+NODES_SCRIPT = r"""
+import sys
+import taichi_dcd
+from taichi.lang.ast import ast_transformer_utils
+from taichi_dcd.scene.builtin import builtin_scene
+from taichi_dcd.scene.scene import Scene
+taichi_dcd.init()
+scene = Scene(builtin_scene(sys.argv[1]))
+visits = [0]
+visit = ast_transformer_utils.Builder.__call__
+def counted(self, ctx, node):
+    visits[0] += 1
+    return visit(self, ctx, node)
+ast_transformer_utils.Builder.__call__ = counted
+scene.step(1)
+print(visits[0])
+"""
+
+
 def first_frame_seconds(scene: str, plain: bool) -> float:
     """Seconds from starting `taichi-dcd run SCENE` to its frame_00001.png existing."""
     env = dict(os.environ)
@@ -77,6 +98,17 @@ def parts(scene: str, plain: bool) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def frontend_nodes(scene: str, plain: bool) -> int:
+    """AST nodes Taichi's frontend visits in the scene's first step (kernel cache warm)."""
+    env = dict(os.environ)
+    env.pop(PLAIN_ENV, None)
+    if plain:
+        env[PLAIN_ENV] = "1"
+    out = subprocess.run([sys.executable, "-c", NODES_SCRIPT, scene], env=env, capture_output=True, text=True,
+                         check=True)
+    return int(out.stdout.strip().splitlines()[-1])
+
+
 def median(values):
     s = sorted(values)
     return s[len(s) // 2] if len(s) % 2 else 0.5 * (s[len(s) // 2 - 1] + s[len(s) // 2])
@@ -90,7 +122,7 @@ def main() -> None:
     if args.repeat < 1:
         parser.error("--repeat must be at least 1")
     print(machine_line())
-    print(f"{'scene':20} {'frontend':9} {'first frame s (median)':>22} {'fastest':>8}   "
+    print(f"{'scene':20} {'frontend':9} {'AST nodes':>9} {'first frame s (median)':>22} {'fastest':>8}   "
           "parts (median s): import and init, build, frame 0, first step")
     for scene in args.scenes:
         first_frame_seconds(scene, False)  # fills the kernel cache
@@ -103,7 +135,8 @@ def main() -> None:
         for plain in (True, False):
             keys = split[plain][0].keys()
             summary = ", ".join(f"{median([p[k] for p in split[plain]]):.2f}" for k in keys)
-            print(f"{scene:20} {'plain' if plain else 'memos':9} {median(times[plain]):>22.2f} "
+            print(f"{scene:20} {'plain' if plain else 'ours':9} {frontend_nodes(scene, plain):>9} "
+                  f"{median(times[plain]):>22.2f} "
                   f"{min(times[plain]):>8.2f}   {summary}", flush=True)
 
 
