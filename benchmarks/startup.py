@@ -66,12 +66,25 @@ print(visits[0])
 """
 
 
-def first_frame_seconds(scene: str, plain: bool) -> float:
-    """Seconds from starting `taichi-dcd run SCENE` to its frame_00001.png existing."""
+def environment(plain: bool) -> dict:
+    """This process's environment, with Taichi's frontend left plain or not."""
     env = dict(os.environ)
     env.pop(PLAIN_ENV, None)
     if plain:
         env[PLAIN_ENV] = "1"
+    return env
+
+
+def script_result(script: str, scene: str, plain: bool) -> str:
+    """The last line a Python script prints, run on SCENE in a fresh process."""
+    out = subprocess.run([sys.executable, "-c", script, scene], env=environment(plain), capture_output=True,
+                         text=True, check=True)
+    return out.stdout.strip().splitlines()[-1]
+
+
+def first_frame_seconds(scene: str, plain: bool) -> float:
+    """Seconds from starting `taichi-dcd run SCENE` to its frame_00001.png existing."""
+    env = environment(plain)
     with tempfile.TemporaryDirectory() as out:
         frame = Path(out) / "frames" / "frame_00001.png"
         start = time.perf_counter()
@@ -89,24 +102,13 @@ def first_frame_seconds(scene: str, plain: bool) -> float:
 
 
 def parts(scene: str, plain: bool) -> dict:
-    env = dict(os.environ)
-    env.pop(PLAIN_ENV, None)
-    if plain:
-        env[PLAIN_ENV] = "1"
-    out = subprocess.run([sys.executable, "-c", PARTS_SCRIPT, scene], env=env, capture_output=True, text=True,
-                         check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """Seconds of one process's parts (PARTS_SCRIPT)."""
+    return json.loads(script_result(PARTS_SCRIPT, scene, plain))
 
 
 def frontend_nodes(scene: str, plain: bool) -> int:
     """AST nodes Taichi's frontend visits in the scene's first step (kernel cache warm)."""
-    env = dict(os.environ)
-    env.pop(PLAIN_ENV, None)
-    if plain:
-        env[PLAIN_ENV] = "1"
-    out = subprocess.run([sys.executable, "-c", NODES_SCRIPT, scene], env=env, capture_output=True, text=True,
-                         check=True)
-    return int(out.stdout.strip().splitlines()[-1])
+    return int(script_result(NODES_SCRIPT, scene, plain))
 
 
 def median(values):

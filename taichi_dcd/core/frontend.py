@@ -34,13 +34,18 @@ _originals: dict = {}
 _HEADED = ("For", "While", "FunctionDef", "If")
 
 
+def left_plain() -> bool:
+    """Whether the user asked for Taichi's frontend as it is (PLAIN_ENV=1)."""
+    return os.environ.get(PLAIN_ENV) == "1"
+
+
 def speed_up() -> bool:
     """Install the memos once per process (idempotent). Returns whether they are installed:
     False on a Taichi whose frontend does not have the helpers they wrap."""
     global _patched
     if _patched:
         return True
-    if os.environ.get(PLAIN_ENV) == "1":
+    if left_plain():
         return False
     try:
         from taichi.lang import kernel_impl

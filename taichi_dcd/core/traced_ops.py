@@ -19,7 +19,7 @@ Taichi as it is.
 
 from __future__ import annotations
 
-import os
+from .frontend import left_plain
 
 _installed = False
 # The helpers replaced, for tests that compare against them.
@@ -32,8 +32,7 @@ def install() -> bool:
     global _installed
     if _installed:
         return True
-    from .frontend import PLAIN_ENV
-    if os.environ.get(PLAIN_ENV) == "1":
+    if left_plain():
         return False
     try:
         from taichi.lang import impl, matrix_ops
