@@ -1,12 +1,11 @@
 """Taichi's small vector and matrix helpers built straight into a kernel's IR.
 
 `a.dot(b)`, `a.cross(b)`, `m @ v`, `.sum()`, `.norm()`, `.norm_sqr()`, `.norm_inv()`,
-`.normalized()`, `.min()` and `.max()`
-are `ti.func`s of Taichi's own (`taichi.lang.matrix_ops`, 1.7). Each call is inlined by running
-Taichi's AST transformer over that function's source again, statically unrolled loops and all:
-on the solver's frame kernel that was ~44% of the ~109,000 AST nodes the frontend visits
-before the kernel can be looked up in the offline cache (about 0.8 s of every process's first
-step).
+`.normalized()`, `.min()` and `.max()` are `ti.func`s of Taichi's own (`taichi.lang.matrix_ops`,
+1.7). Each call is inlined by running Taichi's AST transformer over that function's source
+again, statically unrolled loops and all: on the solver's frame kernel that was ~44% of the
+~109,000 AST nodes the frontend visits before the kernel can be looked up in the offline cache
+(about 0.8 s of every process's first step).
 
 `install()` swaps those helpers for plain Python functions that Taichi calls while it traces
 the kernel, so their operations go into the IR directly. Each one copies its inputs to locals
