@@ -149,7 +149,7 @@ def _run_one(config, args, out) -> tuple[int, dict | None]:
             config.sim.substeps = args.substeps
         if args.iterations:
             config.sim.iterations = args.iterations
-        runtime.init(arch=args.arch, precision=args.precision)
+        runtime.init_when_needed(arch=args.arch, precision=args.precision)
         if not args.quiet:
             print(f"taichi-dcd: building {config.name} ({len(config.bodies)} bodies)", file=sys.stderr)
         scene = Scene(config)

@@ -46,15 +46,8 @@ def init(
     process leases for itself (kernel_cache.leased_folder).
     Calling again with the same settings does nothing.
     """
-    global _settings
-    if arch not in ARCHS:
-        raise ValueError(f"unknown arch {arch!r}: choose one of {', '.join(ARCHS)}")
-    if precision not in PRECISIONS:
-        raise ValueError(f"unknown precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
-    if cpu_threads is not None and cpu_threads < 1:
-        raise ValueError(f"cpu_threads must be at least 1, got {cpu_threads}")
-    wanted = dict(arch=arch, precision=precision, debug=bool(debug),
-                  cpu_threads=cpu_threads, offline_cache=bool(offline_cache))
+    global _settings, _chosen
+    wanted = _checked_settings(arch, precision, debug, cpu_threads, offline_cache)
     if _settings == wanted:
         return
     reset()
@@ -91,6 +84,35 @@ def init(
         _settings = None
         raise RuntimeError(f"Taichi could not start on arch {arch!r} on this machine")
     _settings = wanted
+    _chosen = None
+
+
+def _checked_settings(arch, precision, debug, cpu_threads, offline_cache) -> dict:
+    if arch not in ARCHS:
+        raise ValueError(f"unknown arch {arch!r}: choose one of {', '.join(ARCHS)}")
+    if precision not in PRECISIONS:
+        raise ValueError(f"unknown precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+    if cpu_threads is not None and cpu_threads < 1:
+        raise ValueError(f"cpu_threads must be at least 1, got {cpu_threads}")
+    return dict(arch=arch, precision=precision, debug=bool(debug),
+                cpu_threads=cpu_threads, offline_cache=bool(offline_cache))
+
+
+# Settings chosen by init_when_needed for the first ensure_init, or None.
+_chosen: dict | None = None
+
+
+def init_when_needed(arch: str = "cpu", precision: str = "f64", debug: bool = False,
+                     cpu_threads: int | None = None, offline_cache: bool = True) -> None:
+    """`init`'s settings (checked now), applied by the first call that needs Taichi; at once if
+    Taichi is running. The command line chooses its settings before it has read the scene's
+    meshes, and a scene refused for a bad mesh should not have started Taichi at all."""
+    global _chosen
+    wanted = _checked_settings(arch, precision, debug, cpu_threads, offline_cache)
+    if _settings is not None:
+        init(**wanted)
+    else:
+        _chosen = wanted
 
 
 # Ndarrays of programs already reset that were still referenced then (see reset).
@@ -162,9 +184,9 @@ def fill(fld, data: np.ndarray) -> None:
 
 
 def ensure_init() -> None:
-    """Initialise with the defaults if nobody has yet."""
+    """Initialise, with init_when_needed's settings or the defaults, if nobody has yet."""
     if _settings is None:
-        init()
+        init(**(_chosen or {}))
 
 
 def is_initialized() -> bool:

@@ -68,7 +68,6 @@ class Scene:
     def __init__(self, config: SceneConfig, broad_phase: str = "auto", rules=None):
         from ..solver.solver import XPBDSolver
 
-        runtime.ensure_init()
         self.config = config
         builder = ModelBuilder()
         for body in config.bodies:

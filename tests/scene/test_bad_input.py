@@ -57,9 +57,13 @@ def test_bad_mesh_is_one_line_naming_the_file(tmp_path, case):
         (tmp_path / f"{case}.obj").write_text(text)
     (tmp_path / "scene.toml").write_text(scene_text(mesh=f"{case}.obj"))
     before = snapshot(tmp_path)
-    result = run_cli("run", "scene.toml", "--no-frames", "--out", "out", cwd=tmp_path)
+    cache = tmp_path.parent / f"{tmp_path.name}-cache"
+    result = run_cli("run", "scene.toml", "--no-frames", "--out", "out", cwd=tmp_path,
+                     env={"XDG_CACHE_HOME": str(cache)})
     assert_one_line_error(result, 2, *culprits)
     assert snapshot(tmp_path) == before and not (tmp_path / "out").exists()
+    # Refused before Taichi started: no kernel cache folder was leased.
+    assert not cache.exists()
 
 
 REPAIRS = {
