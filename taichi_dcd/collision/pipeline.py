@@ -16,7 +16,7 @@ from .contacts import Contacts, append_contact
 from ..core.geometry import vec3
 from ..core.launch import Launcher
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
-from .two_sided import faced_pair
+from .two_sided import faced_pair, moved_together
 
 
 @ti.kernel
@@ -32,11 +32,13 @@ def _collide_candidates(
     contact_point: ti.types.ndarray(dtype=vec3, ndim=1),
     contact_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_sheet_gap: ti.types.ndarray(ndim=1),
+    tri_self_gap: ti.types.ndarray(ndim=1),
     particle_x_prev: ti.types.ndarray(dtype=vec3, ndim=1),
     serial: ti.template(),
     keep_touching: ti.template(),
     keep_pressed: ti.template(),
     two_sided: ti.template(),
+    self_gaps: ti.template(),
 ) -> ti.i32:
     """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
     intersecting ones (and with keep_touching those it calls touching, with keep_pressed
@@ -44,7 +46,8 @@ def _collide_candidates(
     than the capacity on overflow). With two_sided, a triangle with a gap in tri_sheet_gap
     (m, 0 for one-sided ones) faces the other one of its pair first, and two such triangles are
     moved together by the mean of their gaps (two_sided.faced_pair; particle_x_prev: the
-    positions at the substep's start)."""
+    positions at the substep's start). With self_gaps, two triangles of one body with a gap in
+    tri_self_gap (m) are moved together by it (a closed soft body's walls keep it)."""
     contact_count[0] = 0
     ti.loop_config(serialize=serial)
     for k in range(n_pairs):
@@ -60,6 +63,9 @@ def _collide_candidates(
                     particle_x_prev[ia[0]], particle_x_prev[ia[1]], particle_x_prev[ia[2]],
                     particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b,
                     0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
+        if ti.static(self_gaps):
+            if ia[3] == ib[3] and tri_self_gap[ab[0]] > 0.0:
+                a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, tri_self_gap[ab[0]])
         hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
         keep = hit
         if ti.static(keep_touching):
@@ -92,13 +98,19 @@ class CollisionPipeline:
     tri_sheet_gap (m,) float: for two-sided (cloth) triangles the gap (m, > 0) two of them
     keep, 0 for the others; each is turned to face the other triangle of its pair
     (collision.two_sided), and `run` then needs the positions at the substep's start too.
+    tri_self_gap (m,) float: the gap (m) two triangles of the same body keep from each other
+    (a closed soft body's walls), 0 for none; such a pair is tested moved together by it.
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
                  skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None,
-                 body_self=None, tri_sheet_gap=None):
+                 body_self=None, tri_sheet_gap=None, tri_self_gap=None):
+        self.self_gaps = tri_self_gap is not None and bool(np.any(np.asarray(tri_self_gap) > 0.0))
+        self.tri_self_gap = ti.ndarray(runtime.real_type(), shape=max(len(tri_indices), 1) if self.self_gaps else 1)
+        if self.self_gaps:
+            self.tri_self_gap.from_numpy(np.asarray(tri_self_gap, runtime.real_dtype()))
         self.two_sided = tri_sheet_gap is not None and bool(np.any(np.asarray(tri_sheet_gap) > 0.0))
         self.tri_sheet_gap = ti.ndarray(runtime.real_type(), shape=max(len(tri_indices), 1) if self.two_sided else 1)
         if self.two_sided:
@@ -127,9 +139,10 @@ class CollisionPipeline:
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
                                     c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
+                                    self.tri_self_gap,
                                     particle_x if particle_x_prev is None else particle_x_prev,
                                     runtime.serial_loops(n_pairs), self.keep_touching, self.keep_pressed,
-                                    self.two_sided)
+                                    self.two_sided, self.self_gaps)
             if n <= c.capacity:
                 break
             c.grow(n)

@@ -6,7 +6,7 @@ import taichi as ti
 
 from ..core.model import STATIC
 from .anchors import anchor_world, involves_soft
-from .cloth import cloth_gap
+from .cloth import pair_gap
 from .rows import has_pair_row, start_row
 from .sleeping import is_moving
 
@@ -98,7 +98,7 @@ def carried_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, max_pus
             p_o = anchor_world(sim, pair[1], bo, False)
             start_row(sim, rows, n_rows, pair[0], pair[1], bm, bo, normal, p_m, p_o, max_push)
             if involves_soft(sim, pair[0], pair[1]):
-                # A soft row's budget is the depth it may leave (two sheets: less their gap).
-                rows.budget[n_rows] = 0.0 - cloth_gap(sim, pair[0], pair[1])
+                # A soft row's budget is the depth it may leave (less the pair's gap).
+                rows.budget[n_rows] = 0.0 - pair_gap(sim, pair[0], pair[1])
             n_rows += 1
     return n_rows

@@ -10,7 +10,7 @@ from ..collision.contacts import GrowableBuffer
 from ..core import runtime
 from ..core.geometry import barycentric
 from .anchors import anchor_velocity, anchor_world, closing, involves_soft, longest_edge
-from .cloth import cloth_gap
+from .cloth import pair_gap
 
 vec3 = ti.math.vec3
 ivec3 = ti.types.vector(3, ti.i32)
@@ -132,9 +132,10 @@ def write_contact(sim: ti.template(), rows: ti.template(), k: ti.i32, t_moved: t
     bary_o = barycentric(target, sim.state.vertex_x[io[0]], sim.state.vertex_x[io[1]], sim.state.vertex_x[io[2]])
     approach = start_row(sim, rows, k, t_moved, t_other, bary_m, bary_o, normal, point, target, max_push)
     if involves_soft(sim, t_moved, t_other):
-        # Two cloth triangles were tested moved together by their gap: the real anchors are
-        # the gap further apart than the depth says, and the row keeps them so.
-        rows.budget[k] = ti.max(depth - approach - max_push, 0.0) - cloth_gap(sim, t_moved, t_other)
+        # Two cloth triangles, or two of one closed soft body, were tested moved together by
+        # their gap: the real anchors are the gap further apart than the depth says, and the
+        # row keeps them so.
+        rows.budget[k] = ti.max(depth - approach - max_push, 0.0) - pair_gap(sim, t_moved, t_other)
     # A vertex of the moved triangle over the other's face is a plain vertex-face contact,
     # and may correct more than its detected depth when its neighbours turn the body. Any
     # other deepest point (an edge crossing, a feature on a boundary) may carry a depth

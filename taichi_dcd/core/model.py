@@ -43,6 +43,7 @@ class BodyInfo:
     thickness: float = float("inf")  # m, the thinnest wall (tunnelling.mesh_thickness)
     reach: float = 0.0               # m, largest distance of a vertex from the centre of mass
     self_collision: bool = False     # a soft body whose own triangles collide
+    self_gap: float = 0.0            # m, the gap a closed soft body's own walls keep (contact.cloth.pair_gap)
 
     @property
     def deformable(self) -> bool:
@@ -107,6 +108,7 @@ class Model:
     edge_rest: ti.Field | None = None
     edge_compliance: ti.Field | None = None
     has_cloth: bool = False
+    has_self_gap: bool = False  # a closed soft body keeps a gap between its own walls
     tri_indices_np: np.ndarray = field(default=None, repr=False)
     tri_body_np: np.ndarray = field(default=None, repr=False)
     tri_hidden_np: np.ndarray = field(default=None, repr=False)

@@ -16,6 +16,7 @@ import trimesh
 
 from ..core import pool, runtime
 from ..core.upload import upload
+from ..contact.cloth import SELF_GAP_FRACTION
 from ..contact.hidden_faces import hidden_static_faces
 from ..core.model import (DEFORMABLE_KINDS, KIND_NAMES, MODEL_FIELD_NAMES, RIGID, SOFT, STATE_FIELD_NAMES, STATIC,
                           BodyInfo, Model, State, model_fields)
@@ -177,7 +178,9 @@ class ModelBuilder:
             bodies.append(BodyInfo(spec.name, spec.kind, v_off, len(v), t_off, len(f), f.copy(), mass, volume,
                                    thickness=sheet_spacing(v, f) if cloth else mesh_thickness(v, f),
                                    reach=float(np.linalg.norm(v - com[k], axis=1).max()),
-                                   self_collision=bool(spec.self_collision)))
+                                   self_collision=bool(spec.self_collision),
+                                   self_gap=(SELF_GAP_FRACTION * sheet_spacing(v, f)
+                                             if spec.self_collision and kind[k] == SOFT and not cloth else 0.0)))
             v_off += len(v)
             t_off += len(f)
 
@@ -235,7 +238,9 @@ class ModelBuilder:
             data.update(vertex_x_prev=x_world[:0], vertex_v=x_world[:0])
 
         counts = {"bodies": n_b, "vertices": n_v, "tris": n_t, "edges": n_e}
-        field_set = pool.acquire(("model", has_soft, bool(cloth_flags.any())), counts,
+        has_self_gap = any(b.self_gap > 0.0 for b in bodies)
+        # The set's FieldView holds these flags (solver.fields), so sets differ by them.
+        field_set = pool.acquire(("model", has_soft, bool(cloth_flags.any()), has_self_gap), counts,
                                  lambda rows: model_fields(rows, has_soft))
         try:
             upload([(fld, pool.padded(data[name], fld.shape[0]))
@@ -245,7 +250,7 @@ class ModelBuilder:
                       **{name: f[name] for name in MODEL_FIELD_NAMES},
                       tri_indices_np=data["tri_indices"], tri_body_np=data["tri_body"],
                       tri_hidden_np=tri_hidden.astype(bool), body_kind_np=kind.copy(), field_set=field_set,
-                      has_cloth=bool(cloth_flags.any()))
+                      has_cloth=bool(cloth_flags.any()), has_self_gap=has_self_gap)
             s = State(**{name: f[name] for name in STATE_FIELD_NAMES})
         except BaseException:
             pool.give_back(field_set)

@@ -52,6 +52,7 @@ _LAYOUT = {
     # speed about it (1), vertex box low (3) and high (3) corners.
     "body_summary": ("bodies", "vec10"),
     "body_box_margin": ("bodies", "scalar"),
+    "body_self_gap": ("bodies", "scalar"),  # BodyInfo.self_gap (m)
     # One triangle holding each vertex: the moved triangle of a soft vertex's resting row.
     "vertex_tri": ("vertices", "int"),
     # Bit k of tri_sharp_edges[t]: edge k (vertex k to k+1) of a rigid or static face is
@@ -150,7 +151,7 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
         rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1)
         parts["solver"] = _allocate(rows, m.has_soft)
         parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft,
-                                   has_cloth=m.has_cloth)
+                                   has_cloth=m.has_cloth, has_self_gap=m.has_self_gap)
         parts["state"] = FieldView({k: field_set.fields[k] for k in STATE_FIELD_NAMES})
     has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
     key = ("sim", rules, has_spin_friction)
@@ -170,7 +171,9 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
     thickness = np.array([min(b.thickness, 1e30) for b in m.bodies])
     # A cloth's boxes also reach as far as the gap its triangles keep from other sheets'.
     margin = np.array([max(SOFT_BOX_MARGIN, CLOTH_GAP_FRACTION if b.kind == "cloth" else 0.0) for b in m.bodies])
-    box_margin = np.where(kind == SOFT, margin * thickness, 0.0)
+    self_gap = np.array([b.self_gap for b in m.bodies])
+    # A closed soft body's boxes reach at least as far as the gap between its own walls.
+    box_margin = np.where(kind == SOFT, np.maximum(margin * thickness, self_gap), 0.0)
     vertex_tri = np.zeros(max(m.n_vertices, 1), np.int32)
     vertex_tri[m.tri_indices_np[::-1].ravel()] = np.repeat(np.arange(m.n_tris)[::-1], 3)
     data = {
@@ -178,6 +181,7 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
         "body_thickness": thickness.astype(real),
         "body_reach": np.array([min(b.reach, 1e30) for b in m.bodies], real),
         "body_box_margin": box_margin.astype(real),
+        "body_self_gap": self_gap.astype(real),
         "vertex_tri": vertex_tri,
         "tri_convex_nbr": convex_neighbours(m, rest_x),
     }

@@ -100,6 +100,12 @@ def sheet_gaps(m: Model) -> np.ndarray:
                      [b.tri_count for b in m.bodies])
 
 
+def self_gaps(m: Model) -> np.ndarray:
+    """(T,) the gap (m) each triangle keeps from the other triangles of its own body
+    (BodyInfo.self_gap: closed soft bodies with self_collision), 0 for the others."""
+    return np.repeat([b.self_gap for b in m.bodies], [b.tri_count for b in m.bodies])
+
+
 class XPBDSolver:
     """Advances a State of a Model by frames of `substeps` XPBD substeps.
 
@@ -154,7 +160,8 @@ class XPBDSolver:
                                               margin=float(self.sim.box_margin_np.max(initial=0.0)),
                                               keep_touching=True, keep_pressed=m.has_soft,
                                               tri_hidden=m.tri_hidden_np, body_self=body_self,
-                                              tri_sheet_gap=sheet_gaps(m) if m.has_cloth else None)
+                                              tri_sheet_gap=sheet_gaps(m) if m.has_cloth else None,
+                                              tri_self_gap=self_gaps(m) if m.has_self_gap else None)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
             # A cloth's triangles face each other as they were at the substep's start.
             self.vertex_prev_nd = (ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
