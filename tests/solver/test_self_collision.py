@@ -57,3 +57,23 @@ def test_the_built_in_soft_coil_lands_without_crossing_itself(f64_scene):
     scene = Scene(builtin_scene("soft-coil"))
     assert scene.solver.use_grid
     assert self_crossings(scene, 150) == (0, 0.0)
+
+
+@pytest.mark.slow
+def test_the_built_in_soft_torus_grips_the_spike_without_crossing_itself(f64_scene):
+    """`soft-torus-on-spike` (self_collision on): the ring slides down the spike until it grips
+    it, no pair of its triangles crossing in any frame, and comes to rest out of the spike,
+    its centre still on the spike's axis."""
+    from taichi_dcd.scene.builtin import builtin_scene
+
+    scene = Scene(builtin_scene("soft-torus-on-spike"))
+    start = scene.body_vertices("ring").mean(axis=0)
+    for _ in range(160):
+        scene.step(1)
+        assert scene.self_penetration()["ring"] == (0, 0.0)
+    before = scene.body_vertices("ring")
+    scene.step(1)
+    assert abs(scene.body_vertices("ring") - before).max() / scene.config.sim.frame_dt < 1e-3  # at rest
+    assert scene.penetration().depth <= 1e-4
+    centre = before.mean(axis=0)
+    assert centre[1] < start[1] - 0.1 and abs(centre[[0, 2]]).max() < 0.01
