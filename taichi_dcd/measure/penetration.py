@@ -240,32 +240,56 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
     return best, volume
 
 
-def body_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]]):
-    """(name_a, name_b, depth m, overlap volume m³) for every pair of bodies (name, kind, world
-    mesh) that are not both static, in order (pair_penetration; with a cloth,
-    cloth.cloth_pair_depth and no volume: a sheet has none)."""
-    for i in range(len(bodies)):
-        for j in range(i + 1, len(bodies)):
-            (name_a, kind_a, a), (name_b, kind_b, b) = bodies[i], bodies[j]
-            if kind_a == "static" and kind_b == "static":
-                continue
-            if "cloth" in (kind_a, kind_b):
-                from .cloth import cloth_pair_depth  # (it builds on this module)
+# Rows of bodies whose boxes are compared with all others at once (box_pairs): bounds the
+# comparison's memory to BOX_BLOCK × n × 3 values.
+BOX_BLOCK = 256
 
-                depth, volume = (0.0 if boxes_apart(a, b) else cloth_pair_depth(a, kind_a, b, kind_b)), 0.0
-            else:
-                depth, volume = pair_penetration(a, b)
-            yield name_a, name_b, depth, volume
+
+def box_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> tuple[np.ndarray, int]:
+    """The pairs (i, j), i < j, of bodies (name, kind, world mesh) not both static whose boxes
+    meet (not boxes_apart), in order, as a (p, 2) array; and how many such pairs of bodies
+    not both static there are in all. The same test as boxes_apart, on every pair at once:
+    a scene of 1,000 bodies has 500,000 pairs, and one call per pair took a minute a frame."""
+    n = len(bodies)
+    if n < 2:
+        return np.zeros((0, 2), np.int64), 0
+    bounds = np.array([mesh.bounds for _, _, mesh in bodies], np.float64)  # (n, 2, 3)
+    lo, hi = bounds[:, 0], bounds[:, 1]
+    static = np.array([kind == "static" for _, kind, _ in bodies])
+    found, total = [], 0
+    for start in range(0, n, BOX_BLOCK):
+        rows = np.arange(start, min(start + BOX_BLOCK, n))
+        meet = ~np.any(np.maximum(lo[rows, None], lo[None]) > np.minimum(hi[rows, None], hi[None]), axis=2)
+        wanted = (np.arange(n)[None] > rows[:, None]) & ~(static[rows, None] & static[None])
+        total += int(wanted.sum())
+        i, j = np.nonzero(meet & wanted)
+        found.append(np.stack([rows[i], j], axis=1))
+    return np.concatenate(found), total
+
+
+def body_pairs(bodies: list[tuple[str, str, trimesh.Trimesh]], meeting: np.ndarray | None = None):
+    """(name_a, name_b, depth m, overlap volume m³) for the pairs of bodies (name, kind, world
+    mesh) that are not both static and whose boxes meet (box_pairs, or `meeting` if given: the
+    others have neither depth nor volume), in order (pair_penetration; with a cloth,
+    cloth.cloth_pair_depth and no volume: a sheet has none)."""
+    for i, j in (box_pairs(bodies)[0] if meeting is None else meeting).tolist():
+        (name_a, kind_a, a), (name_b, kind_b, b) = bodies[i], bodies[j]
+        if "cloth" in (kind_a, kind_b):
+            from .cloth import cloth_pair_depth  # (it builds on this module)
+
+            depth, volume = cloth_pair_depth(a, kind_a, b, kind_b), 0.0
+        else:
+            depth, volume = pair_penetration(a, b)
+        yield name_a, name_b, depth, volume
 
 
 def scene_penetration(bodies: list[tuple[str, str, trimesh.Trimesh]]) -> Penetration:
     """The deepest pair and the total overlap volume over pairs of bodies (name, kind,
     world mesh) that are not both static, and how many pairs were measured and found apart."""
     result = Penetration()
-    meshes = {name: mesh for name, _, mesh in bodies}
-    for name_a, name_b, depth, volume in body_pairs(bodies):
-        result.pairs += 1
-        result.pairs_apart += boxes_apart(meshes[name_a], meshes[name_b])
+    meeting, result.pairs = box_pairs(bodies)
+    result.pairs_apart = result.pairs - len(meeting)
+    for name_a, name_b, depth, volume in body_pairs(bodies, meeting):
         result.volume += volume
         if depth > result.depth or (result.pair is None and volume > 0):
             result.depth, result.pair = depth, (name_a, name_b)

@@ -200,3 +200,29 @@ def test_torus_is_a_closed_outward_ring_about_y():
     np.testing.assert_allclose(ring.bounds, [[-0.5, -0.1, -0.5], [0.5, 0.1, 0.5]], atol=1e-12)
     with pytest.raises(ValueError, match="minor_radius must be below major_radius"):
         shapes.make_shape("torus", {"major_radius": 0.1, "minor_radius": 0.2})
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_pairs_whose_boxes_meet_are_those_boxes_apart_keeps_on_random_bodies(seed, monkeypatch):
+    """box_pairs tests every pair of bodies at once (in blocks of rows): on 60 random boxes,
+    some static, it returns exactly the pairs, not both static, that boxes_apart does not
+    separate, in order, and the count of pairs not both static; scene_penetration's counts
+    agree."""
+    from taichi_dcd.measure import penetration
+
+    monkeypatch.setattr(penetration, "BOX_BLOCK", 7)  # several blocks, the last one short
+    rng = np.random.default_rng(seed)
+    bodies = []
+    for k in range(60):
+        mesh = trimesh.creation.box(extents=rng.uniform(0.05, 0.6, 3))
+        mesh.apply_translation(rng.uniform(-1.0, 1.0, 3))
+        bodies.append((f"b{k}", "static" if k % 5 == 0 else "rigid", mesh))
+    expected = [(i, j) for i in range(60) for j in range(i + 1, 60)
+                if not (bodies[i][1] == bodies[j][1] == "static")
+                and not penetration.boxes_apart(bodies[i][2], bodies[j][2])]
+    total = sum(1 for i in range(60) for j in range(i + 1, 60) if not (bodies[i][1] == bodies[j][1] == "static"))
+    meeting, counted = penetration.box_pairs(bodies)
+    assert [tuple(p) for p in meeting.tolist()] == expected and counted == total
+    assert 0 < len(expected) < total
+    result = scene_penetration(bodies)
+    assert (result.pairs, result.pairs_apart) == (total, total - len(expected))
