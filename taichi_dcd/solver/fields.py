@@ -80,6 +80,8 @@ _LAYOUT = {
 }
 _SOFT_LAYOUT = {
     "edge_lambda": ("edges", "scalar"),
+    # The angular momentum a soft body's projection gave it beyond its contacts' (solver.soft_spin).
+    "soft_spin_error": ("bodies", "vec3"),
     "vertex_grad": ("vertices", "vec3"),
     "saved_vertex_x": ("vertices", "vec3"), "saved_vertex_v": ("vertices", "vec3"),
 }

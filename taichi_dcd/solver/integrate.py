@@ -5,6 +5,7 @@ import taichi as ti
 
 from ..core.model import RIGID, SOFT
 from ..core.rigid import carried_angular_velocity, quat_rotate, rotate_by
+from .soft_spin import centre_and_inertia, remove_internal_spin
 
 vec3 = ti.math.vec3
 
@@ -83,23 +84,14 @@ def damp_soft_body(sim: ti.template(), b: ti.i32, h: float):
     rate = sim.model.body_damping[b]
     if sim.model.body_kind[b] == SOFT and rate > 0.0:
         lo, hi = sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]
-        mass = 0.0
-        x_cm = vec3(0.0)
+        mass, x_cm, inertia = centre_and_inertia(sim, b)
         v_cm = vec3(0.0)
-        for i in range(lo, hi):
-            m = 1.0 / sim.model.vertex_inv_mass[i]
-            mass += m
-            x_cm += m * sim.state.vertex_x[i]
-            v_cm += m * sim.state.vertex_v[i]
-        x_cm /= mass
-        v_cm /= mass
         spin = vec3(0.0)
-        inertia = ti.Matrix.zero(float, 3, 3)
         for i in range(lo, hi):
             m = 1.0 / sim.model.vertex_inv_mass[i]
-            r = sim.state.vertex_x[i] - x_cm
-            spin += m * r.cross(sim.state.vertex_v[i])
-            inertia += m * (r.dot(r) * ti.Matrix.identity(float, 3) - r.outer_product(r))
+            v_cm += m * sim.state.vertex_v[i]
+            spin += m * (sim.state.vertex_x[i] - x_cm).cross(sim.state.vertex_v[i])
+        v_cm /= mass
         omega = vec3(0.0)
         if ti.abs(inertia.determinant()) > 0.0:
             omega = inertia.inverse() @ spin
@@ -128,14 +120,15 @@ def apply_drag(sim: ti.template(), b: ti.i32, h: float):
 
 @ti.func
 def update_velocities(sim: ti.template(), h: float):
-    """Velocities from the substep's motion (Müller 2020, Alg. 2, lines 12-16), then the soft
-    bodies' damping."""
+    """Velocities from the substep's motion (Müller 2020, Alg. 2, lines 12-16), less the spin a
+    soft body's own constraints gave it (solver.soft_spin), then the soft bodies' damping."""
     for b in range(sim.model.body_count[0]):
         update_body_velocity(sim, b, h)
     if ti.static(sim.model.has_soft):
         for i in range(sim.model.vertex_count[0]):
             update_particle_velocity(sim, i, h)
         for b in range(sim.model.body_count[0]):
+            remove_internal_spin(sim, b)
             damp_soft_body(sim, b, h)
     for b in range(sim.model.body_count[0]):
         apply_drag(sim, b, h)

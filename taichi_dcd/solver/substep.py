@@ -23,6 +23,7 @@ from .integrate import place_vertex, predict, update_velocities
 from .islands import block_body, pair_block, solve_blocks
 from .sleep import update_sleep
 from .soft import solve_edge, solve_volume
+from .soft_spin import measure_internal_spin
 
 vec3 = ti.math.vec3
 
@@ -104,6 +105,8 @@ def finish_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, iterations: 
                 max_push: float):
     """After the projection (serial): velocities, the velocity pass, the rows to carry to the
     next substep, and sleep."""
+    if ti.static(sim.model.has_soft):
+        measure_internal_spin(sim, rows, n, h)
     update_velocities(sim, h)
     solve_velocities(sim, rows, n, iterations, h, g_norm)
     if ti.static(sim.rules.carried_rows):

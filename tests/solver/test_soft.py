@@ -66,8 +66,9 @@ def ball_motion(scene: Scene, name: str):
 
 def test_damping_stills_the_wobble_and_keeps_both_momenta(f64_scene):
     """Damping (1/s) takes a soft body's particles towards its rigid motion: linear
-    momentum stays (1e-9 relative), angular momentum drifts no more than the undamped
-    body's own (XPBD projects along gradients at the end of the substep: ~2e-3 here), and
+    momentum stays (1e-9 relative), and so does angular momentum (1e-10 relative, damped or
+    not: the edges and the volume move their particles along their gradients at the
+    substep's start; along the end-of-substep gradients it drifted by ~2e-3 here), and
     the wobble's kinetic energy (about the best rigid motion) over frames 20-40 keeps a
     good part of its start undamped and loses nearly all of it at 50/s."""
     scene = wobbling_balls([0.0, 50.0])
@@ -83,7 +84,7 @@ def test_damping_stills_the_wobble_and_keeps_both_momenta(f64_scene):
         np.testing.assert_allclose(p1, p0, rtol=1e-9, atol=1e-9 * np.linalg.norm(p0))
         drift[name] = np.linalg.norm(l1 - l0) / np.linalg.norm(l0)
         wobble[name] = np.mean(later[name][20:]) / e0
-    assert drift["ball0"] < 1e-2 and drift["ball1"] <= 2.0 * drift["ball0"]
+    assert drift["ball0"] < 1e-10 and drift["ball1"] < 1e-10
     assert wobble["ball0"] > 0.1
     assert wobble["ball1"] < 0.01 * wobble["ball0"]
 
@@ -97,7 +98,7 @@ def depth_inside_convex(points: np.ndarray, mesh) -> np.ndarray:
 
 
 def test_soft_ball_dropped_on_a_spike_hangs_on_its_apex(f64_scene):
-    """The soft-ball-on-spike scene (compliance 1e-4 m/N, damping 70/s, drag 0.5/s; first contact at
+    """The soft-ball-on-spike scene (compliance 1e-4 m/N, damping 70/s, drag 1/s; first contact at
     0.45 s, 4.4 m/s): the ball dents around the apex and hangs on the spike instead of
     bouncing off it or being skewered. Through the impact the independent measure finds
     the spike at most 5 mm inside the ball. At 1.5-1.6 s the ball's centre is within 2 cm
