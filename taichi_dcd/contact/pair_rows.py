@@ -5,7 +5,7 @@ rows, duplicates), and the serial narrow phase over the all-pairs candidates."""
 import taichi as ti
 
 from ..collision.narrowphase import collide_triangle_pair
-from ..core.model import STATIC
+from ..core.model import SOFT, STATIC
 from .cloth import pair_vertices
 from .anchors import approach, involves_soft, longest_edge, target_inside
 from .exits import edge_edge_normal, nearest_exit
@@ -142,6 +142,13 @@ def add_pair_contact(sim: ti.template(), rows: ti.template(), n: ti.i32, ab: ive
             if ti.static(sim.rules.edge_edge_normal):
                 depth, normal = edge_edge_normal(sim, t_m, t_o, point, depth, normal)
             touching = only_touches(sim, t_m, depth, both_moving)
+        elif ti.static(sim.rules.nearest_exit):
+            # A soft triangle deeper than the allowance in a rigid or static face leaves through
+            # that face's nearest convex neighbour too (held points are for rigid bodies only).
+            # Prevents: a cloth triangle lying over a box's top corner measured 5.6 cm deep from
+            # a side face, and its row pushed the sheet sideways a budget's worth each substep.
+            if depth > max_push and sim.model.body_kind[sim.model.tri_body[t_o]] != SOFT:
+                t_o, depth, normal, _ = nearest_exit(sim, t_o, point, depth, normal, False)
     if keep:
         # (Not `or`: Taichi would walk the row chain for a touching row too.)
         duplicate = touching

@@ -12,8 +12,8 @@ class ContactRules:
     touching_pairs: a pair that only touches (one triangle in the other's plane) still gets a row
         from the crossing triangle's deepest vertex (contact.touching).
     pressed_through: with a soft body, a patch sagged wholly behind a face gets that row too.
-    nearest_exit: a deep row between rigid or static bodies leaves through a convex neighbour's
-        face when that is nearer (contact.exits).
+    nearest_exit: a deep row between rigid or static bodies (or of a soft triangle in a rigid or
+        static face) leaves through a convex neighbour's face when that is nearer (contact.exits).
     surface_points: rows whose point lies on the other body's surface are held there (grazing
         rows between moving bodies) or dropped when they did not approach (resting rows).
     edge_edge_normal: two convex edges meeting push along their common normal.
