@@ -50,14 +50,14 @@ def test_the_grid_keeps_the_coils_turns_apart_too(f64_scene):
 
 @pytest.mark.slow
 def test_the_built_in_soft_coil_lands_without_crossing_itself_and_comes_to_rest(f64_scene):
-    """`soft-coil` (1,616 triangles, on the grid): over its first 2 s, through the landing and
+    """`soft-coil` (1,616 triangles, on the grid): over its first 2.5 s, through the landing and
     the turns settling on each other, no pair of its triangles crosses in any frame, and then
-    it is at rest (every vertex slower than 1 mm/s)."""
+    it is at rest (every vertex slower than 1 mm/s; it settles at ~2.1 s)."""
     from taichi_dcd.scene.builtin import builtin_scene
 
     scene = Scene(builtin_scene("soft-coil"))
     assert scene.solver.use_grid
-    assert self_crossings(scene, 200) == (0, 0.0)
+    assert self_crossings(scene, 250) == (0, 0.0)
     before = scene.body_vertices("coil")
     scene.step(1)
     assert abs(scene.body_vertices("coil") - before).max() / scene.config.sim.frame_dt < 1e-3
