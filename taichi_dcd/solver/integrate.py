@@ -77,14 +77,14 @@ def update_particle_velocity(sim: ti.template(), i: ti.i32, h: float):
 
 
 @ti.func
-def damp_soft_body(sim: ti.template(), b: ti.i32, h: float):
+def damp_soft_body(sim: ti.template(), b: ti.i32, h: float, mass: float, x_cm: vec3, inertia: ti.template()):
     """Soft-body damping (Müller et al. 2007, §3.5): each particle loses the fraction
     1 − exp(−damping·h) of its velocity relative to the body's rigid motion
-    v_cm + ω × r_i, ω = I⁻¹L; momentum and angular momentum are kept."""
+    v_cm + ω × r_i, ω = I⁻¹L; momentum and angular momentum are kept. mass, x_cm and inertia:
+    soft body b's (soft_spin.centre_and_inertia)."""
     rate = sim.model.body_damping[b]
-    if sim.model.body_kind[b] == SOFT and rate > 0.0:
+    if rate > 0.0:
         lo, hi = sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]
-        mass, x_cm, inertia = centre_and_inertia(sim, b)
         v_cm = vec3(0.0)
         spin = vec3(0.0)
         for i in range(lo, hi):
@@ -128,7 +128,10 @@ def update_velocities(sim: ti.template(), h: float):
         for i in range(sim.model.vertex_count[0]):
             update_particle_velocity(sim, i, h)
         for b in range(sim.model.body_count[0]):
-            remove_internal_spin(sim, b)
-            damp_soft_body(sim, b, h)
+            if sim.model.body_kind[b] == SOFT:
+                # Positions are final here: one centre and inertia serves both.
+                mass, x_cm, inertia = centre_and_inertia(sim, b)
+                remove_internal_spin(sim, b, x_cm, inertia)
+                damp_soft_body(sim, b, h, mass, x_cm, inertia)
     for b in range(sim.model.body_count[0]):
         apply_drag(sim, b, h)

@@ -77,12 +77,12 @@ def centre_and_inertia(sim: ti.template(), b: ti.i32):
 
 
 @ti.func
-def remove_internal_spin(sim: ti.template(), b: ti.i32):
+def remove_internal_spin(sim: ti.template(), b: ti.i32, x_cm: vec3, inertia: ti.template()):
     """Take soft_spin_error[b] back from soft body b's new velocities as a rigid turn,
-    v_i −= (I⁻¹ L_err) × (x_i − x_cm): it changes no distance's rate and no momentum."""
+    v_i −= (I⁻¹ L_err) × (x_i − x_cm): it changes no distance's rate and no momentum. x_cm and
+    inertia: the body's at its particles' current positions (centre_and_inertia)."""
     error = sim.soft_spin_error[b]
-    if sim.model.body_kind[b] == SOFT and error.norm_sqr() > 0.0:
-        _, x_cm, inertia = centre_and_inertia(sim, b)
+    if error.norm_sqr() > 0.0:
         if ti.abs(inertia.determinant()) > 0.0:
             turn = inertia.inverse() @ error
             for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
