@@ -9,6 +9,7 @@ seconds per frame, the deepest point of the sheet inside the spike over the run,
 pairs of the sheet's own triangles that cross at the end (measure/cloth.py).
 
 Usage: python benchmarks/cloth.py [--cells 24,48,70] [--frames N] [--threads T] [--iterations K]
+                                  [--arch cpu|cuda]
 """
 
 import argparse
@@ -22,11 +23,11 @@ import taichi_dcd
 from taichi_dcd.scene.builtin import builtin_scene
 
 
-def bench(cells: int, frames: int, threads: int | None, iterations: int | None) -> dict:
+def bench(cells: int, frames: int, threads: int | None, iterations: int | None, arch: str = "cpu") -> dict:
     """One run in this (fresh, spawned) process."""
     from taichi_dcd.scene.scene import Scene
 
-    taichi_dcd.init(precision="f64", cpu_threads=threads)
+    taichi_dcd.init(arch=arch, precision="f64", cpu_threads=threads)
     config = builtin_scene("cloth-on-spike")
     if iterations:
         config.sim.iterations = iterations
@@ -56,6 +57,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=60, help="frames per run (default 60: the fall and the landing)")
     parser.add_argument("--threads", type=int, default=None, help="CPU threads (default: all)")
     parser.add_argument("--iterations", type=int, default=None, help="sweeps per substep (default: the scene's 16)")
+    parser.add_argument("--arch", default="cpu", choices=["cpu", "cuda"], help="Taichi backend (default cpu)")
     args = parser.parse_args()
     try:
         sizes = [int(c) for c in args.cells.split(",")]
@@ -64,13 +66,14 @@ def main() -> None:
     if args.frames < 2 or min(sizes) < 1:
         parser.error("--frames must be at least 2 and every --cells at least 1")
     print(machine_line())
-    print(f"cloth-on-spike, f64, 12 x {args.iterations or 16}, {args.frames} frames, threads {args.threads or 'all'}; target: "
+    print(f"cloth-on-spike, arch {args.arch}, f64, 12 x {args.iterations or 16}, {args.frames} frames, "
+          f"threads {args.threads or 'all'}; target: "
           "0.2 s per frame at ~10k triangles")
     print(f"{'cells':>5} {'tris':>6} {'broad':>5} {'s/frame':>8} {'predict':>8} {'broad':>7} {'narrow':>7} "
           f"{'project':>8} {'measure s':>9} {'deepest m':>10} {'self pairs':>10}")
     for cells in sizes:
         with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-            r = pool.submit(bench, cells, args.frames, args.threads, args.iterations).result()
+            r = pool.submit(bench, cells, args.frames, args.threads, args.iterations, args.arch).result()
         ph = r["phases"]
         print(f"{cells:>5} {r['tris']:>6} {'grid' if r['grid'] else 'all':>5} {r['per_frame']:>8.3f} "
               f"{ph.get('predict', 0):>8.3f} {ph.get('broad', 0):>7.3f} {ph.get('narrow', 0):>7.3f} "
