@@ -69,7 +69,8 @@ class Model:
     static body's (contact/hidden_faces.py: never in contact). With soft bodies only:
     body_self_collision (B,) i32 1 where a soft body's own triangles collide; body_cloth (B,) i32
     1 for a cloth (no volume, two-sided faces); edge_indices (E,) ivec2; edge_rest (E,) m;
-    edge_compliance (E,) m/N (a cloth's bending pairs are edges too, with their own compliance).
+    edge_compliance (E,) m/N (a cloth's bending pairs are edges too, with their own compliance);
+    the edges in the order the sweeps solve them (scene.builder.wavefront_order).
     """
 
     bodies: list[BodyInfo]

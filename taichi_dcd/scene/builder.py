@@ -245,10 +245,10 @@ class ModelBuilder:
             vertex_x=x_world,
         )
         if has_soft:
-            edges = np.concatenate(edges)
-            order = wavefront_order(edges)
+            all_edges = np.concatenate(edges)
+            order = wavefront_order(all_edges)
             data.update(body_self_collision=np.array([s.self_collision for s in self.specs], np.int32),
-                        edge_indices=edges[order].astype(np.int32),
+                        edge_indices=all_edges[order].astype(np.int32),
                         edge_rest=np.concatenate(edge_rest)[order].astype(real),
                         edge_compliance=np.concatenate(edge_compliance)[order].astype(real),
                         body_cloth=cloth_flags,
