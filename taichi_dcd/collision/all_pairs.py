@@ -1,13 +1,13 @@
 """The in-kernel all-pairs broad phase of small scenes: every triangle pair of different bodies
 (not both static or asleep, neither a hidden face), and of one soft body with self_collision
-(sharing no vertex), whose padded boxes overlap, serially."""
+(not near neighbours: core.geometry.near_in_mesh), whose padded boxes overlap, serially."""
 
 import taichi as ti
 
 from ..collision.broadphase import BOX_SLACK
 from ..collision.grid_cells import boxes_overlap
 from ..core import runtime
-from ..core.geometry import shares_vertex
+from ..core.geometry import near_in_mesh
 from ..contact.sleeping import is_moving
 
 vec3 = ti.math.vec3
@@ -67,19 +67,20 @@ def candidate_pairs(sim: ti.template(), rows: ti.template()) -> ti.i32:
 @ti.func
 def self_pairs(sim: ti.template(), rows: ti.template(), total: ti.i32) -> ti.i32:
     """After candidate `total`-1: the pairs of each soft body with self_collision, triangles that
-    share no vertex and whose padded boxes overlap; returns the count (more than the capacity
-    on overflow)."""
+    are not near neighbours (near_in_mesh) and whose padded boxes overlap; returns the count
+    (more than the capacity on overflow)."""
     n = total
     capacity = rows.tri.shape[0]
     for b in range(sim.model.body_count[0]):
         if sim.model.body_self_collision[b] != 0 and is_moving(sim, b):
             first, end = sim.model.body_tri_range[b][0], sim.model.body_tri_range[b][1]
             for ta in range(first, end):
-                ia = sim.model.tri_indices[ta]
                 for tb in range(ta + 1, end):
-                    if (boxes_overlap(sim.tri_lo[ta], sim.tri_hi[ta], sim.tri_lo[tb], sim.tri_hi[tb])
-                            and not shares_vertex(ia, sim.model.tri_indices[tb])):
-                        if n < capacity:
-                            rows.tri[n] = ivec3(ta, tb, -1)
-                        n += 1
+                    # Nested: Taichi's `and` evaluates both sides, and the neighbour test costs.
+                    if boxes_overlap(sim.tri_lo[ta], sim.tri_hi[ta], sim.tri_lo[tb], sim.tri_hi[tb]):
+                        if not near_in_mesh(sim.model.tri_indices[ta], sim.model.tri_indices[tb],
+                                            sim.vertex_nbr_range, sim.vertex_nbr):
+                            if n < capacity:
+                                rows.tri[n] = ivec3(ta, tb, -1)
+                            n += 1
     return n

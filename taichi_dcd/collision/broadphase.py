@@ -1,5 +1,6 @@
 """Broad phase: every pair of triangles of different bodies whose boxes overlap, once, and of
-one body with self-collision (a soft body's own triangles that share no vertex).
+one body with self-collision (a soft body's own triangles that are not near neighbours,
+core.geometry.near_in_mesh).
 
 Each triangle gets a world-space axis-aligned box inflated by a contact margin
 (and by the narrow phase's zero tolerance, see BOX_SLACK),
@@ -23,7 +24,7 @@ import numpy as np
 import taichi as ti
 
 from ..core import runtime
-from ..core.geometry import shares_vertex, vec3
+from ..core.geometry import near_in_mesh, vec3, vertex_neighbours
 from ..core.launch import Launcher
 from .grid_cells import LEVELS, boxes_overlap, bucket_of, cell_of, level_inv_h, level_of
 
@@ -193,24 +194,30 @@ def _bin_group(
 
 
 @ti.func
-def report_pair(t: ti.i32, body_t: ti.i32, lo_t: vec3, u: ti.i32, body_u: ti.i32, lo_u: vec3,
-                c: ivec3, inv_h: float, pairs: ti.template(), group_count: ti.template()):
-    """Append (t, u), body order first, if c — a cell both overlapping boxes cover — holds
-    the lower corner of the boxes' intersection (so each pair is appended in one cell)."""
-    if all(ti.max(cell_of(lo_t, inv_h), cell_of(lo_u, inv_h)) == c):
-        k = ti.atomic_add(group_count[0, LEVELS + 2], 1)
-        if k < pairs.shape[0]:
-            pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
+def owns_pair(lo_t: vec3, lo_u: vec3, c: ivec3, inv_h: float) -> bool:
+    """Whether c, a cell two overlapping boxes (lower corners lo_t, lo_u) both cover, holds the
+    lower corner of their intersection: the one cell of theirs that reports the pair."""
+    return all(ti.max(cell_of(lo_t, inv_h), cell_of(lo_u, inv_h)) == c)
 
 
 @ti.func
-def pairable(tri: ti.template(), body_self: ti.template(), t: ti.i32, body_t: ti.i32, u: ti.i32,
-             body_u: ti.i32) -> bool:
+def report_pair(t: ti.i32, body_t: ti.i32, u: ti.i32, body_u: ti.i32, pairs: ti.template(),
+                group_count: ti.template()):
+    """Append (t, u), body order first."""
+    k = ti.atomic_add(group_count[0, LEVELS + 2], 1)
+    if k < pairs.shape[0]:
+        pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
+
+
+@ti.func
+def pairable(bodies: ti.template(), t: ti.i32, body_t: ti.i32, u: ti.i32, body_u: ti.i32) -> bool:
     """Whether triangles t and u may pair: different bodies, or one body with self-collision
-    and no shared vertex."""
+    and not near neighbours (geometry.near_in_mesh). bodies: (tri, body_self, nbr_range, nbr)."""
+    tri, body_self = ti.static(bodies[0], bodies[1])
     ok = body_u != body_t
     if not ok and body_self[body_t] != 0:
-        ok = not shares_vertex(ivec3(tri[t][0], tri[t][1], tri[t][2]), ivec3(tri[u][0], tri[u][1], tri[u][2]))
+        ok = not near_in_mesh(ivec3(tri[t][0], tri[t][1], tri[t][2]), ivec3(tri[u][0], tri[u][1], tri[u][2]),
+                              bodies[2], bodies[3])
     return ok
 
 
@@ -220,7 +227,8 @@ def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i3
                  group_count: ti.template(), bodies: ti.template()):
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
     `level`, may pair with t (pairable) and have an overlapping box. entries: (tri_level,
-    entry_key, entry_box), the levels and one table's entries; bodies: (tri, body_self); both
+    entry_key, entry_box), the levels and one table's entries; bodies: (tri, body_self,
+    nbr_range, nbr); both
     tuples made with ti.static."""
     tri_level, entry_key, entry_box = ti.static(entries[0], entries[1], entries[2])
     for f in range(first, end):
@@ -228,8 +236,11 @@ def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i3
         if (key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
                 and boxes_overlap(lo_t, hi_t, entry_box[f, 0], entry_box[f, 1])):
             u = key[0]
-            if tri_level[u] == level and pairable(bodies[0], bodies[1], t, body_t, u, key[1]):
-                report_pair(t, body_t, lo_t, u, key[1], entry_box[f, 0], c, inv_h, pairs, group_count)
+            # The cell first (a pair meets in every cell both boxes cover, and is reported in
+            # one), then the neighbour test; nested, as Taichi's `and` evaluates both sides.
+            if tri_level[u] == level and owns_pair(lo_t, entry_box[f, 0], c, inv_h):
+                if pairable(bodies, t, body_t, u, key[1]):
+                    report_pair(t, body_t, u, key[1], pairs, group_count)
 
 
 @ti.func
@@ -259,6 +270,8 @@ def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti
 def _find_pairs(
     tri: ti.types.ndarray(dtype=ivec5, ndim=1),
     body_self: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    nbr_range: ti.types.ndarray(dtype=ivec2, ndim=1),
+    nbr: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_level: ti.types.ndarray(dtype=ti.i32, ndim=1),
     tri_box: ti.types.ndarray(dtype=vec3, ndim=2),
     group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
@@ -275,8 +288,8 @@ def _find_pairs(
     inv_h0: float,
     serial: ti.template(),
 ) -> ti.i32:
-    """Candidate pairs (box overlap, different bodies or one with self-collision sharing no
-    vertex, not both static); returns their number,
+    """Candidate pairs (box overlap, different bodies or one with self-collision not near
+    neighbours, not both static); returns their number,
     which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored)."""
     group_count[0, LEVELS + 2] = 0
     top_moving = -1
@@ -312,12 +325,12 @@ def _find_pairs(
         bodies = moving_bodies[b]
         end = moving_end[b + 1] if bodies[0] != bodies[1] or body_self[bodies[0]] != 0 else 0
         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
-                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, ti.static((tri, body_self)))
+                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, ti.static((tri, body_self, nbr_range, nbr)))
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
             scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
                          ti.static((tri_level, static_key, static_box)), pairs, group_count,
-                         ti.static((tri, body_self)))
+                         ti.static((tri, body_self, nbr_range, nbr)))
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
@@ -326,13 +339,13 @@ def _find_pairs(
             t = moving_active[s]
             body_t = tri[t][3]
             query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self)))
+                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
             query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
-                          static_end, static_key, static_box, pairs, ti.static((tri, body_self)))
+                          static_end, static_key, static_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
         else:
             t = static_active[s - n_moving]
             query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self)))
+                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
     return group_count[0, LEVELS + 2]
 
 
@@ -412,7 +425,8 @@ class UniformGrid:
     far along any axis since returns the same pairs, a superset of the exact ones
     (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
     never binned, so in no pair (faces hidden against another static body, contact/hidden_faces.py).
-    body_self (n_bodies,) bool: bodies whose own triangles pair too (those sharing no vertex).
+    body_self (n_bodies,) bool: bodies whose own triangles pair too (those not near neighbours:
+    core.geometry.near_in_mesh).
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
@@ -475,6 +489,13 @@ class UniformGrid:
             if len(flags) < n_bodies or np.any(flags[:n_bodies] & (body_group == STATIC)):
                 raise ValueError("body_self needs one flag per body, and a static body cannot collide with itself")
             self.body_self.from_numpy(flags[:n_bodies].astype(np.int32))
+        # The self-colliding bodies' vertex neighbours (geometry.near_in_mesh).
+        self_tris = np.asarray(body_self, dtype=bool)[tri_body] if body_self is not None and m else np.zeros(m, bool)
+        nbr_range, nbr = vertex_neighbours(tri_indices, n_particles, self_tris)
+        self.nbr_range = ti.ndarray(ivec2, shape=n_particles)
+        self.nbr_range.from_numpy(nbr_range)
+        self.nbr = ti.ndarray(ti.i32, shape=len(nbr))
+        self.nbr.from_numpy(nbr)
         self.body_box = ti.ndarray(real3, shape=(n_bodies, 2))
         # Per group: triangles binned per level [0, LEVELS), binned triangles [LEVELS],
         # entries [LEVELS + 1]; [0, LEVELS + 2] counts the pairs of a query.
@@ -553,7 +574,7 @@ class UniformGrid:
         moving, static = self.tables
         serial = runtime.serial_loops(moving.entries)
         while True:
-            n = self._launch(_find_pairs, self.tri, self.body_self, self.tri_level, self.tri_box, self.group_count,
+            n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level, self.tri_box, self.group_count,
                              moving.bucket_end, moving.bucket_bodies, moving.entry_key, moving.entry_box,
                              moving.active, static.bucket_end, static.entry_key, static.entry_box, static.active,
                              self.pairs, 1.0 / self.cell_size, serial)

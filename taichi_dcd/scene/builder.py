@@ -53,7 +53,7 @@ class BodySpec:
     damping: float = 0.0
     drag: float = 0.0
     spin_friction: float = 0.0
-    self_collision: bool = False  # soft bodies: its own triangles collide (those sharing no vertex)
+    self_collision: bool = False  # soft bodies: its own triangles collide (not near neighbours)
     bending: float = 0.0
     source: str | None = None  # the mesh file, named in error messages
 

@@ -11,6 +11,7 @@ from ..contact.rules import ContactRules
 from ..contact.cloth import CLOTH_GAP_FRACTION
 from ..contact.soft_rows import SOFT_BOX_MARGIN
 from ..core import pool, runtime
+from ..core.geometry import vertex_neighbours
 from ..core.upload import upload
 from ..core.model import (MODEL_FIELD_NAMES, SOFT, STATE_FIELD_NAMES, Model, State, mat_field, scalar_field,
                           vec_field)
@@ -84,6 +85,9 @@ _SOFT_LAYOUT = {
     "soft_spin_error": ("bodies", "vec3"),
     "vertex_grad": ("vertices", "vec3"),
     "saved_vertex_x": ("vertices", "vec3"), "saved_vertex_v": ("vertices", "vec3"),
+    # The self-colliding bodies' vertex neighbours (core.geometry.near_in_mesh): each vertex's
+    # [first, end) in vertex_nbr.
+    "vertex_nbr_range": ("vertices", "ivec2"), "vertex_nbr": ("vertex_nbrs", "int"),
 }
 
 
@@ -150,7 +154,9 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
     parts = field_set.parts
     fresh = "solver" not in parts
     if fresh:
-        rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1)
+        # A vertex's neighbours take an entry per edge end: at most 6 per triangle (an open mesh).
+        rows = dict(field_set.capacity, carry=max(1024, field_set.capacity["tris"]), one=1,
+                    vertex_nbrs=max(1, 6 * field_set.capacity["tris"]))
         parts["solver"] = _allocate(rows, m.has_soft)
         parts["model"] = FieldView({k: field_set.fields[k] for k in MODEL_FIELD_NAMES}, has_soft=m.has_soft,
                                    has_cloth=m.has_cloth, has_self_gap=m.has_self_gap)
@@ -189,6 +195,8 @@ def _fill(sim: SolverFields, fields: dict, m: Model, state: State, fresh: bool) 
     }
     if m.has_soft:
         data["tri_sharp_edges"] = sharp_edge_bits(m, rest_x)
+        self_tris = np.array([b.self_collision for b in m.bodies], bool)[m.tri_body_np]
+        data["vertex_nbr_range"], data["vertex_nbr"] = vertex_neighbours(m.tri_indices_np, m.n_vertices, self_tris)
     upload([(fields[name], pool.padded(values, fields[name].shape[0])) for name, values in data.items()])
     if not fresh:
         scratch = [fld for name, fld in fields.items() if name not in data]
