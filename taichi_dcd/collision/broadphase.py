@@ -228,8 +228,7 @@ def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i3
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
     `level`, may pair with t (pairable) and have an overlapping box. entries: (tri_level,
     entry_key, entry_box), the levels and one table's entries; bodies: (tri, body_self,
-    nbr_range, nbr); both
-    tuples made with ti.static."""
+    nbr_range, nbr); both tuples made with ti.static."""
     tri_level, entry_key, entry_box = ti.static(entries[0], entries[1], entries[2])
     for f in range(first, end):
         key = entry_key[f]
@@ -291,6 +290,7 @@ def _find_pairs(
     """Candidate pairs (box overlap, different bodies or one with self-collision not near
     neighbours, not both static); returns their number,
     which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored)."""
+    mesh = ti.static((tri, body_self, nbr_range, nbr))
     group_count[0, LEVELS + 2] = 0
     top_moving = -1
     top_static = -1
@@ -325,12 +325,12 @@ def _find_pairs(
         bodies = moving_bodies[b]
         end = moving_end[b + 1] if bodies[0] != bodies[1] or body_self[bodies[0]] != 0 else 0
         scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
-                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, ti.static((tri, body_self, nbr_range, nbr)))
+                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, mesh)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
             scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
                          ti.static((tri_level, static_key, static_box)), pairs, group_count,
-                         ti.static((tri, body_self, nbr_range, nbr)))
+                         mesh)
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
@@ -339,13 +339,13 @@ def _find_pairs(
             t = moving_active[s]
             body_t = tri[t][3]
             query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
+                          moving_end, moving_key, moving_box, pairs, mesh)
             query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
-                          static_end, static_key, static_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
+                          static_end, static_key, static_box, pairs, mesh)
         else:
             t = static_active[s - n_moving]
             query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, ti.static((tri, body_self, nbr_range, nbr)))
+                          moving_end, moving_key, moving_box, pairs, mesh)
     return group_count[0, LEVELS + 2]
 
 
@@ -574,9 +574,10 @@ class UniformGrid:
         moving, static = self.tables
         serial = runtime.serial_loops(moving.entries)
         while True:
-            n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level, self.tri_box, self.group_count,
-                             moving.bucket_end, moving.bucket_bodies, moving.entry_key, moving.entry_box,
-                             moving.active, static.bucket_end, static.entry_key, static.entry_box, static.active,
+            n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level,
+                             self.tri_box, self.group_count, moving.bucket_end, moving.bucket_bodies,
+                             moving.entry_key, moving.entry_box, moving.active, static.bucket_end,
+                             static.entry_key, static.entry_box, static.active,
                              self.pairs, 1.0 / self.cell_size, serial)
             if n <= self.pair_capacity:
                 break
