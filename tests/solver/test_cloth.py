@@ -136,22 +136,25 @@ def test_the_built_in_cloth_on_spike_drapes_without_being_pierced(f64_scene):
 
 
 @pytest.mark.slow
-def test_two_cloths_on_the_box_lie_still_at_its_corners(f64_scene):
-    """`two-cloths-on-box` from 2 s to 4 s: no vertex moves faster than 3 mm/s between frames,
-    the sheets do not cross each other or themselves, and nothing is inside the box. Where the
-    lower sheet lies on a corner of the box under the upper one, the box's row and the upper
-    sheet's rows disagree by ~77 µm; when the row solved last won, the corner vertex went up
-    and down by that much every substep (7.7 mm/s between frames)."""
+def test_two_cloths_on_the_box_settle(f64_scene):
+    """`two-cloths-on-box` from 2 s to 3 s: no vertex moves faster than the settle speed (1 mm/s
+    between frames), the sheets do not cross each other or themselves, and nothing is inside
+    the box. Two things kept it moving: where the lower sheet lies on a corner of the box under
+    the upper one, the box's row and the upper sheet's rows disagree by ~77 µm, and when the row
+    solved last won the corner vertex went up and down by that much every substep (7.7 mm/s
+    between frames); and a fold of one sheet inside a fold of the other, whose rows were let go
+    whenever it drifted to the edge of the sheets' gap, rattled wall to wall every 13 substeps
+    (0.5-2.6 mm/s)."""
     from taichi_dcd.measure.cloth import sheet_crossings
     from taichi_dcd.scene.builtin import builtin_scene
 
     scene = Scene(builtin_scene("two-cloths-on-box"))
     scene.step(200)
     x = scene.vertices().copy()
-    for _ in range(200):
+    for _ in range(100):
         scene.step(1)
         speed = np.linalg.norm(scene.vertices() - x, axis=1).max() / 0.01
-        assert speed < 3e-3, f"a vertex moves at {speed:.2e} m/s at t = {scene.time:.2f} s"
+        assert speed < 1e-3, f"a vertex moves at {speed:.2e} m/s at t = {scene.time:.2f} s"
         x = scene.vertices().copy()
     lower, upper = scene.body_vertices("lower_cloth"), scene.body_vertices("upper_cloth")
     assert sheet_crossings(lower, scene.body_faces("lower_cloth"), upper, scene.body_faces("upper_cloth"))[0] == 0
