@@ -48,12 +48,12 @@ def keep_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, slip_max: floa
     count = 0
     for k in range(n):
         tri = rows.tri[k]
-        normal = rows.normal[k]
-        gap = (anchor_world(sim, tri[1], rows.bary_other[k], False)
-               - anchor_world(sim, tri[0], rows.bary_moved[k], False))
-        if (rows.lambda_n[k] > 0.0 or within_slack(sim, tri[0], tri[1], gap.dot(normal))) \
+        if (rows.lambda_n[k] > 0.0 or within_slack(sim, rows, k)) \
                 and (both_soft(sim, tri[0], tri[1]) or not involves_soft(sim, tri[0], tri[1])) \
                 and count < sim.carry_capacity:
+            normal = rows.normal[k]
+            gap = (anchor_world(sim, tri[1], rows.bary_other[k], False)
+                   - anchor_world(sim, tri[0], rows.bary_moved[k], False))
             keep = (gap - gap.dot(normal) * normal).norm() <= slip_max
             if ti.static(sim.rules.opposed_rows):
                 if keep:
@@ -68,16 +68,19 @@ def keep_rows(sim: ti.template(), rows: ti.template(), n: ti.i32, slip_max: floa
 
 
 @ti.func
-def within_slack(sim: ti.template(), t_a: ti.i32, t_b: ti.i32, separation: float) -> bool:
-    """Whether t_a and t_b are cloth triangles, which keep a gap g (contact.cloth.pair_gap),
-    and their anchors, `separation` = N·(p_other − p_moved) apart (m; −g when they lie exactly
-    at the gap), are less than SLACK_GAPS·g beyond it. (A closed soft body's own walls are
-    left out: soft-coil, its rows carried so, jerked a vertex at 2-5 mm/s every ~0.16 s and
-    did not settle in its 3 s.)"""
+def within_slack(sim: ti.template(), rows: ti.template(), k: ti.i32) -> bool:
+    """Whether row k ties two cloth triangles, which keep a gap g (contact.cloth.pair_gap),
+    and its anchors, N·(p_other − p_moved) apart (−g when they lie exactly at the gap), are
+    less than SLACK_GAPS·g beyond it. (A closed soft body's own walls are left out:
+    soft-coil, its rows carried so, jerked a vertex at 2-5 mm/s every ~0.16 s and did not
+    settle in its 3 s.)"""
     out = False
     if ti.static(sim.model.has_cloth):
-        if is_cloth(sim, t_a) and is_cloth(sim, t_b):
-            g = pair_gap(sim, t_a, t_b)
+        tri = rows.tri[k]
+        if is_cloth(sim, tri[0]) and is_cloth(sim, tri[1]):
+            g = pair_gap(sim, tri[0], tri[1])
+            separation = rows.normal[k].dot(anchor_world(sim, tri[1], rows.bary_other[k], False)
+                                            - anchor_world(sim, tri[0], rows.bary_moved[k], False))
             out = separation + g > -ti.static(SLACK_GAPS) * g
     return out
 
