@@ -261,6 +261,44 @@ def test_a_resting_box_sleeps_and_wakes_when_another_lands_on_it(f64_scene):
     assert scene.penetration().depth <= 1e-5
 
 
+def leaning_slab_on_a_chip(loads: int) -> list[dict]:
+    """A 0.1 x 0.04 x 0.1 m chip on the ground and a 0.4 x 0.1 x 0.4 m slab (40 times its mass)
+    leaning on it: one bottom edge on the ground at x = -0.25 m, the bottom face on the chip's
+    near top edge; `loads` more slabs stacked flush on the leaning one, each 1 µm above it."""
+    import math
+    tilt = math.atan(0.04 / 0.35)
+    corner = np.array([-0.25, 0.0])
+    turn = np.array([[math.cos(tilt), -math.sin(tilt)], [math.sin(tilt), math.cos(tilt)]])
+    bodies = [dict(GROUND, params={"size": [4.0, 1.0, 4.0]}),
+              {"name": "chip", "kind": "rigid", "shape": "box", "params": {"size": [0.1, 0.04, 0.1]},
+               "position": [0.15, 0.02, 0.0]}]
+    for k in range(loads + 1):
+        x, y = corner + turn @ np.array([0.2, 0.05 + 0.1 * k])
+        bodies.append({"name": f"slab{k}", "kind": "rigid", "shape": "box", "params": {"size": [0.4, 0.1, 0.4]},
+                       "position": [float(x), float(y) + 1e-6 * (k + 1), 0.0],
+                       "rotation": [0.0, 0.0, math.degrees(tilt)]})
+    return bodies
+
+
+def test_light_chip_under_a_loaded_leaning_slab_stays_on_the_ground(f64_scene, tmp_path):
+    """The chip, the leaning slab and two slabs on it, 0.6 s: the chip stays on the ground
+    (its lowest vertex above -1e-5 m), nothing ends deeper in anything than 1e-4 m, and the
+    slabs stay where they were set (0.1 mm). The slab rests on the ground too, so the chip and
+    it are on the same contact level and shock propagation does not hold the chip still; before
+    the rows of such an island held the depth they may leave (islands.leaves_depth), the chip's
+    rows against the ground spent their budget pushing back each substep and the slab drove it
+    into the ground: 8 mm at 0.1 s, 3.6 cm at 0.6 s."""
+    bodies = leaning_slab_on_a_chip(loads=2)
+    scene = Scene(scene_from_dict({"sim": {"frames": 60, "sleep": False}, "body": bodies}, name="lean"))
+    start = scene.body_positions()[2:].copy()
+    scene.step(60)
+    x = scene.vertices()
+    chip = scene.model.bodies[1]
+    assert x[chip.vertex_start:chip.vertex_start + chip.vertex_count, 1].min() >= -1e-5
+    assert scene.penetration(x).depth <= 1e-4
+    np.testing.assert_allclose(scene.body_positions()[2:], start, atol=1e-4)
+
+
 @pytest.mark.slow
 def test_stack_of_five_boxes_holds_still(f64_scene, tmp_path):
     """Five unit boxes stacked 0.1 mm apart, each 5 cm further along x and turned 7° more
