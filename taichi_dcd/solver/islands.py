@@ -26,8 +26,10 @@ COUPLED_TOL = 1e-12
 # iterations: fewer would all go to one thread).
 ISLAND_WORKERS = 1024
 # A rigid body touching one at least this many times heavier, in an island of several bodies,
-# is loaded: its rows against static bodies hold the depth they may leave (leaves_depth).
-LOADED_MASS_RATIO = 2.0
+# is loaded: its rows against static bodies hold the depth they may leave (leaves_depth). At
+# 2, the built-in pile (spikes and wedges of a few times each other's mass) no longer settled
+# by 5 s (a body at 3 mm/s; 3.5 s before); its pairs are below 10.
+LOADED_MASS_RATIO = SHOCK_MASS_RATIO
 
 
 @ti.func
@@ -59,17 +61,17 @@ def leaves_depth(sim: ti.template(), rows: ti.template(), k: ti.i32, coupled: bo
     depth it may leave instead of a budget it spends (project_block_row): in an island of
     several bodies, a row against a static body whose rigid body is loaded (mark_loaded: it
     touches a body LOADED_MASS_RATIO times heavier or more), and a row between two rigid
-    bodies whose masses differ SHOCK_MASS_RATIO times or more. Such a row is pushed against
+    bodies whose masses differ that much (the shock-propagation threshold). Such a row is pushed against
     by rows that carry a heavier body's weight, and Gauss-Seidel takes about as many sweeps as
     the mass ratio to pass that weight on: a spent budget stops the row halfway, and the light
     body is driven in. Prevents: a light body under a heavy one that also rests on the ground
     (the same contact level, so no shock propagation) went into the ground a little more each
     substep, its rows against the ground having spent their budget pushing back: a 0.1 m chip
-    under a leaning slab and two slabs on it went 3.6 cm into the ground in 0.6 s, and in a
-    pile of 300 boxes and wedges a wedge rested 1.1 cm deep (4.5 cm and growing at 3.8 s in a
-    pile of 1,000). Rows of bodies of like mass keep the budget: holding the depth they may
-    leave, the rows of a ten-box stack's flush side faces pushed it 0.17 m sideways, and the
-    ground rows of a stack of five unit boxes let it creep 3 µm a second."""
+    (1/40 of the slab's mass) under a leaning slab and two slabs on it went 3.6 cm into the
+    ground in 0.6 s. Rows of bodies of closer mass keep the budget: holding the depth they may
+    leave, the rows of a ten-box stack's flush side faces pushed it 0.17 m sideways, the ground
+    rows of a stack of five unit boxes let it creep 3 µm a second, and between bodies twice
+    the mass apart, rows squeezing a body from two sides threw it out of a pile at 28 m/s."""
     out = False
     if coupled:
         tri = rows.tri[k]
@@ -78,7 +80,7 @@ def leaves_depth(sim: ti.template(), rows: ti.template(), k: ti.i32, coupled: bo
             out = sim.block_loaded[b] == 1
         else:
             m_a, m_b = sim.body_mass[sim.model.tri_body[tri[0]]], sim.body_mass[sim.model.tri_body[tri[1]]]
-            out = ti.max(m_a, m_b) >= SHOCK_MASS_RATIO * ti.min(m_a, m_b)
+            out = ti.max(m_a, m_b) >= LOADED_MASS_RATIO * ti.min(m_a, m_b)
     return out
 
 
