@@ -280,7 +280,7 @@ def leaning_slab_on_a_chip(loads: int) -> list[dict]:
     return bodies
 
 
-def test_light_chip_under_a_loaded_leaning_slab_stays_on_the_ground(f64_scene, tmp_path):
+def test_light_chip_under_a_loaded_leaning_slab_stays_on_the_ground(f64_scene):
     """The chip, the leaning slab and two slabs on it, 0.6 s: the chip stays on the ground
     (its lowest vertex above -1e-5 m), nothing ends deeper in anything than 1e-4 m, and the
     slabs stay where they were set (0.1 mm). The slab rests on the ground too, so the chip and
