@@ -125,13 +125,20 @@ class Scene:
         sim = self.config.sim
         count = self.solver.last_contact_count
         # The all-pairs path runs frames in one launch and checks on the device whether the
-        # configured substeps do (solver.summary.substeps_suffice); only a frame for which they do
-        # not is chosen here and stepped on its own.
+        # configured substeps do (solver.summary.substeps_suffice); once this scene has said
+        # why frames need more (fast_notice), it also chooses them there in f64
+        # (substeps_needed, by the same rules and arithmetic), saving a launch and a read of
+        # the state a frame. Any other frame for which they do not is chosen here and stepped
+        # on its own. (In f32 the device's frame_dt / n would differ from NumPy's in its last bit.)
         check = sim.max_impact_motion if len(self.model.bodies) >= 2 else None
+        choose = self.fast_notice is not None and runtime.precision() == "f64"
         done = 0
         while done < frames:
             ran, count = self.solver.step_frames(frames - done, sim.frame_dt, sim.substeps, sim.iterations,
-                                                 max_impact_motion=check)
+                                                 max_impact_motion=check, choose_substeps=choose)
+            more, most = self.solver.more_substeps
+            self.fast_frames += more
+            self.most_substeps = max(self.most_substeps, most)
             if ran == 0:
                 with np.errstate(over="ignore", invalid="ignore"):  # an exploded body's inf speed is an error there
                     substeps = self._substeps_for_next_frame()

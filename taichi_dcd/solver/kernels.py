@@ -23,7 +23,7 @@ from .substep import (
     substep_all_pairs,
     substep_from_pairs,
 )
-from .summary import substeps_suffice, summarize_bodies
+from .summary import substeps_needed, substeps_suffice, summarize_bodies
 
 vec3 = ti.math.vec3
 mat3 = ti.math.mat3
@@ -55,7 +55,7 @@ def summarize_kernel(sim: ti.template()):
 def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
                       first_kick: float, centre: vec3, bound: float, top_speed: float, depenetration: float,
                       check: ti.i32, max_impact: float,
-                      thinnest: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                      thinnest: float, frame_dt: float, choose: ti.i32, cap: ti.i32, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                       c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
@@ -65,34 +65,46 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                       b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                       b_gap: ti.types.ndarray(ndim=1),
                       b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(4, ti.i32):
+                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(7, ti.i32):
     """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
     substep). Each frame starts from a snapshot of the state. With `check`, each frame
-    first runs `substeps_suffice`; if they do not, the launch stops before that frame
-    (NEEDS_CHOICE). A frame whose candidates overflow the contact buffer is undone and the
+    first runs `substeps_suffice`; if they do not, the frame runs the substeps that
+    `substeps_needed` chooses (frame_dt / that many seconds each, at most `cap`) with
+    `choose`, else the launch stops before that frame (NEEDS_CHOICE), as it does when even
+    `cap` would not do. A frame whose candidates overflow the contact buffer is undone and the
     launch stops (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
     begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
-    bad body, the bad frame counted as done)."""
+    bad body, the bad frame counted as done; frames run with more substeps, the most
+    substeps of a frame, the substeps they ran beyond `substeps`)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_lambda_n, c_lambda_t,
                                  c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     done = 0
     most = 0
     n = 0
     status = 0
+    more = 0
+    most_substeps = 0
+    extra = 0
     g_norm = gravity.norm()
     capacity = c_tri.shape[0]
     ti.loop_config(serialize=True)
     for _ in range(1):
         while done < frames and status == 0:
+            frame_substeps = substeps
             if check != 0 and substeps_suffice(sim, substeps, h * substeps, g_norm, max_impact,
                                                thinnest) == 0:
-                status = NEEDS_CHOICE
-                break
+                frame_substeps = -1
+                if choose != 0:
+                    frame_substeps = substeps_needed(sim, substeps, frame_dt, g_norm, max_impact, thinnest, cap)
+                if frame_substeps < 0:
+                    status = NEEDS_CHOICE
+                    break
+            frame_h = ti.select(frame_substeps == substeps, h, frame_dt / frame_substeps)
             save_state(sim)
             most = 0
-            for sub in range(substeps):
+            for sub in range(frame_substeps):
                 kick = ti.select(done == 0 and sub == 0, first_kick, 1.0)
-                wanted, n = substep_all_pairs(sim, rows, iterations, h, gravity, g_norm, kick, depenetration)
+                wanted, n = substep_all_pairs(sim, rows, iterations, frame_h, gravity, g_norm, kick, depenetration)
                 most = ti.max(most, wanted)
             if most > capacity:
                 restore_state(sim)
@@ -102,7 +114,11 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                     place_vertex(sim, i)
                 status = state_is_sane(sim, centre, bound, top_speed)
                 done += 1
-    return ti.Vector([done, most, n, status])
+                if frame_substeps != substeps:
+                    more += 1
+                    extra += frame_substeps - substeps
+                    most_substeps = ti.max(most_substeps, frame_substeps)
+    return ti.Vector([done, most, n, status, more, most_substeps, extra])
 
 @ti.kernel
 def begin_substep(sim: ti.template(), h: float, gravity: vec3, kick: float,

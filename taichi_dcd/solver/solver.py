@@ -42,6 +42,7 @@ from ..core import runtime
 from ..core.launch import Launcher
 from ..core.model import RIGID, STATIC, Model, State
 from .fields import solver_fields
+from .tunnelling import MAX_SUBSTEP_FACTOR
 from .kernels import (
     OVERFLOW,
     begin_rows,
@@ -233,11 +234,15 @@ class XPBDSolver:
         return count if done else None
 
     def step_frames(self, frames: int, frame_dt: float, substeps: int, iterations: int,
-                    max_impact_motion: float | None = None) -> tuple[int, int]:
+                    max_impact_motion: float | None = None, choose_substeps: bool = False) -> tuple[int, int]:
         """Up to `frames` frames as `step_frame`, all in one launch on the all-pairs path;
         with max_impact_motion, stops before the first frame whose substeps do not suffice
-        (on the grid path: before any). Returns (frames done, contact count of the last
-        substep). Raises SimulationError as step_frame, after counting the bad frame."""
+        (on the grid path: before any), unless `choose_substeps`: then the all-pairs path
+        runs such a frame with the substeps Scene._substeps_for_next_frame would choose
+        (at most MAX_SUBSTEP_FACTOR times `substeps`; beyond that it stops before it), and
+        `more_substeps` says (frames that ran more, the most a frame ran). Returns (frames
+        done, contact count of the last substep). Raises SimulationError as step_frame, after
+        counting the bad frame."""
         if substeps < 1 or iterations < 1 or not frame_dt > 0:
             raise ValueError("frame_dt, substeps and iterations must be positive")
         h = frame_dt / substeps
@@ -245,6 +250,7 @@ class XPBDSolver:
         done = 0
         count = self.last_contact_count
         status = 0
+        self.more_substeps = (0, 0)
         if self.use_grid:
             if max_impact_motion is not None:
                 return 0, count
@@ -260,13 +266,16 @@ class XPBDSolver:
                 first_kick = 0.5 if self.state.substeps_done == 0 else 1.0
                 # Bound (core.launch): Taichi's own argument checks cost ~0.2 ms a launch, as
                 # much as a resting body's frame of 12 substeps.
-                ran, most, count, status = (int(v) for v in self.launch(
+                ran, most, count, status, more, most_substeps, extra = (int(v) for v in self.launch(
                     frames_all_pairs, self.sim, int(frames - done), int(substeps), int(iterations), float(h),
                     self.gravity_vec, float(first_kick), self.centre_vec, float(self.bound), float(top_speed),
                     float(self.depenetration_speed), check, float(max_impact_motion or 0.0), float(self.thinnest),
+                    float(frame_dt), int(choose_substeps), int(MAX_SUBSTEP_FACTOR * substeps),
                     *self.contacts.arrays()))
                 done += ran
                 self._frames_advanced(ran, frame_dt, substeps, count)
+                self.state.substeps_done += extra
+                self.more_substeps = (self.more_substeps[0] + more, max(self.more_substeps[1], most_substeps))
                 if status != OVERFLOW:
                     break
                 self.contacts.grow(most)

@@ -76,13 +76,15 @@ def test_a_body_falling_onto_the_ground_takes_substeps_for_its_speed_only_when_n
 
 @pytest.mark.parametrize("debug", [pytest.param(False, id="fast"),
                                    pytest.param(True, id="debug", marks=pytest.mark.slow)])
-def test_the_frames_own_substep_check_agrees_with_the_numpy_choice(debug):
+def test_the_frames_own_substep_check_and_choice_agree_with_the_numpy_choice(debug):
     """The all-pairs frame checks on the device whether the configured substeps suffice
     (solver.summary.substeps_suffice) and only otherwise leaves the choice to numpy
     (Scene._substeps_for_next_frame): on seeded random states of a static ground, two rigid
     bodies and a soft ball (moved apart or together, random linear and angular velocities,
     a random wobble of the ball's particles), the frame runs exactly when numpy would keep
-    the configured substeps, and leaves the state untouched when it would not.
+    the configured substeps, and leaves the state untouched when it would not. Asked to
+    choose (solver.summary.substeps_needed), it runs as many substeps as numpy chooses and
+    ends in the same state, to the bit, as the frame stepped with numpy's count.
 
     Run in a fresh process: in three of about eight full runs the test worker died here
     without a word after a few hundred earlier tests (never when run alone; README, Tests);
@@ -113,7 +115,7 @@ def substep_check_trials(debug: bool):
     rigid = [model.body_index("spike"), model.body_index("box")]
     ball = model.bodies[model.body_index("ball")]
     rng = np.random.default_rng(11)
-    x0, vertex0 = state.body_x.to_numpy(), state.vertex_x.to_numpy()
+    x0, vertex0, q0 = state.body_x.to_numpy(), state.vertex_x.to_numpy(), state.body_q.to_numpy()
     outcomes = []
     for trial in range(60):
         # Heights from touching the ground to 1 m clear of it; speeds up to ~8 m/s.
@@ -133,7 +135,9 @@ def substep_check_trials(debug: bool):
         for field, value in [(state.body_x, x), (state.body_v, v), (state.body_w, w), (state.vertex_x, vertex_x),
                              (state.vertex_v, vertex_v)]:
             field.from_numpy(value)
-        expected = scene._substeps_for_next_frame() == sim.substeps
+        numpy_substeps = scene._substeps_for_next_frame()
+        expected = numpy_substeps == sim.substeps
+        substeps_done = state.substeps_done
         count = scene.solver.step_frame(sim.frame_dt, sim.substeps, sim.iterations,
                                         max_impact_motion=sim.max_impact_motion)
         assert (count is not None) == expected, trial
@@ -141,6 +145,23 @@ def substep_check_trials(debug: bool):
             np.testing.assert_array_equal(state.vertex_x.to_numpy(), vertex_x)
             np.testing.assert_array_equal(state.body_v.to_numpy(), v)
         outcomes.append(expected)
+        ends = []
+        for choose in (True, False):
+            for field, value in [(state.body_x, x), (state.body_v, v), (state.body_w, w),
+                                 (state.body_q, q0), (state.vertex_x, vertex_x), (state.vertex_v, vertex_v)]:
+                field.from_numpy(value)
+            scene.solver.sim.carry_count[0] = 0
+            state.substeps_done = substeps_done
+            if choose:
+                ran, _ = scene.solver.step_frames(1, sim.frame_dt, sim.substeps, sim.iterations,
+                                                  max_impact_motion=sim.max_impact_motion, choose_substeps=True)
+                assert ran == 1, trial
+                assert (scene.solver.more_substeps[1] or sim.substeps) == numpy_substeps, trial
+            else:
+                scene.solver.step_frames(1, sim.frame_dt, numpy_substeps, sim.iterations)
+            ends.append([state.body_x.to_numpy(), state.body_q.to_numpy(), state.vertex_x.to_numpy()])
+        for chosen_here, chosen_by_numpy in zip(*ends):
+            np.testing.assert_array_equal(chosen_here, chosen_by_numpy)
     assert 10 <= sum(outcomes) <= 50  # both answers are exercised
     print("checked", len(outcomes), "states")
 
