@@ -125,7 +125,7 @@ class Scene:
         sim = self.config.sim
         count = self.solver.last_contact_count
         # The all-pairs path runs frames in one launch and checks on the device whether the
-        # configured substeps do (solver.summary.substeps_suffice); once this scene has said
+        # configured substeps do (solver.summary.substeps_needed); once this scene has said
         # why frames need more (fast_notice), it also chooses them there in f64
         # (substeps_needed, by the same rules and arithmetic), saving a launch and a read of
         # the state a frame. Any other frame for which they do not is chosen here and stepped

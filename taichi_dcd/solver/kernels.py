@@ -23,7 +23,7 @@ from .substep import (
     substep_all_pairs,
     substep_from_pairs,
 )
-from .summary import substeps_needed, substeps_suffice, summarize_bodies
+from .summary import substeps_needed, summarize_bodies
 
 vec3 = ti.math.vec3
 mat3 = ti.math.mat3
@@ -54,8 +54,8 @@ def summarize_kernel(sim: ti.template()):
 @ti.kernel
 def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, iterations: ti.i32, h: float, gravity: vec3,
                       first_kick: float, centre: vec3, bound: float, top_speed: float, depenetration: float,
-                      check: ti.i32, max_impact: float,
-                      thinnest: float, frame_dt: float, choose: ti.i32, cap: ti.i32, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                      check: ti.i32, max_impact: float, thinnest: float, frame_dt: float, choose: ti.i32,
+                      cap: ti.i32, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                       c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
@@ -68,11 +68,11 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                       b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(7, ti.i32):
     """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
     substep). Each frame starts from a snapshot of the state. With `check`, each frame
-    first runs `substeps_suffice`; if they do not, the frame runs the substeps that
-    `substeps_needed` chooses (frame_dt / that many seconds each, at most `cap`) with
-    `choose`, else the launch stops before that frame (NEEDS_CHOICE), as it does when even
-    `cap` would not do. A frame whose candidates overflow the contact buffer is undone and the
-    launch stops (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
+    first asks `substeps_needed` whether `substeps` suffice; if not, with `choose` it runs
+    the substeps chosen there (frame_dt / that many seconds each, at most `cap`), else the
+    launch stops before that frame (NEEDS_CHOICE), as it does when even `cap` would not do.
+    A frame whose candidates overflow the contact buffer is undone and the launch stops
+    (OVERFLOW). Returns (frames done, most candidate pairs in the last frame
     begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
     bad body, the bad frame counted as done; frames run with more substeps, the most
     substeps of a frame, the substeps they ran beyond `substeps`)."""
@@ -91,12 +91,10 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
     for _ in range(1):
         while done < frames and status == 0:
             frame_substeps = substeps
-            if check != 0 and substeps_suffice(sim, substeps, h * substeps, g_norm, max_impact,
-                                               thinnest) == 0:
-                frame_substeps = -1
-                if choose != 0:
-                    frame_substeps = substeps_needed(sim, substeps, frame_dt, g_norm, max_impact, thinnest, cap)
-                if frame_substeps < 0:
+            if check != 0:
+                summarize_bodies(sim)
+                frame_substeps = substeps_needed(sim, substeps, frame_dt, g_norm, max_impact, thinnest, cap)
+                if frame_substeps != substeps and (choose == 0 or frame_substeps < 0):
                     status = NEEDS_CHOICE
                     break
             frame_h = ti.select(frame_substeps == substeps, h, frame_dt / frame_substeps)

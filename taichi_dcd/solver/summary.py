@@ -50,52 +50,11 @@ def summary_motion(sim: ti.template(), b: ti.i32):
 
 
 @ti.func
-def substeps_suffice(sim: ti.template(), substeps: ti.i32, frame_dt: float, g_norm: float, max_impact: float,
-                     thinnest: float) -> ti.i32:
-    """1 if a frame of `substeps` needs no more of them by the rules of
-    Scene._substeps_for_next_frame (solver/tunnelling.py), applied to the same per-body summary:
-    the two fastest bodies move at most TUNNEL_FRACTION of the thinnest body's thickness
-    per substep, and no two bodies that can meet within the frame close in by more than
-    `max_impact` per substep. 0 otherwise (the caller then chooses in numpy). Serial."""
-    summarize_bodies(sim)
-    ok = 1
-    n_b = sim.model.body_count[0]
-    if n_b >= 2:
-        first = 0.0
-        second = 0.0
-        for b in range(n_b):
-            if sim.model.body_kind[b] != STATIC:
-                v, spin = summary_motion(sim, b)
-                speed = v.norm() + spin + g_norm * frame_dt
-                if speed > first:
-                    second = first
-                    first = speed
-                elif speed > second:
-                    second = speed
-        motion = (first + second) * frame_dt
-        if motion > 0.0 and thinnest > 0.0 and ti.ceil(motion / (TUNNEL_FRACTION * thinnest)) > substeps:
-            ok = 0
-        if max_impact > 0.0:
-            for a in range(n_b):
-                for b in range(n_b):
-                    if a != b and (sim.model.body_kind[a] != STATIC or sim.model.body_kind[b] != STATIC):
-                        v_a, spin_a = summary_motion(sim, a)
-                        v_b, spin_b = summary_motion(sim, b)
-                        pair_motion = ((v_a - v_b).norm() + spin_a + spin_b + g_norm * frame_dt) * frame_dt
-                        s_a, s_b = sim.body_summary[a], sim.body_summary[b]
-                        gap = ti.max(vec3(s_a[4], s_a[5], s_a[6]) - vec3(s_b[7], s_b[8], s_b[9]),
-                                     vec3(s_b[4], s_b[5], s_b[6]) - vec3(s_a[7], s_a[8], s_a[9])).max()
-                        if gap <= pair_motion and ti.ceil(pair_motion / max_impact) > substeps:
-                            ok = 0
-    return ok
-
-
-@ti.func
 def substeps_needed(sim: ti.template(), substeps: ti.i32, frame_dt: float, g_norm: float, max_impact: float,
                     thinnest: float, cap: ti.i32) -> ti.i32:
     """The substeps the next frame needs, at least `substeps`, from body_summary
     (summarize_bodies first) by the rules and arithmetic of Scene._substeps_for_next_frame,
-    so that the kernel choosing them runs the frame the caller would have run: the two
+    so that a frame kernel that checks or chooses them runs the frame its caller would: the two
     fastest bodies move at most TUNNEL_FRACTION of the thinnest body's thickness per substep
     (-1 when that takes more than `cap`: the caller says which body is too fast), and no two
     bodies that can meet within the frame close in by more than `max_impact` per substep (at

@@ -78,12 +78,12 @@ def test_a_body_falling_onto_the_ground_takes_substeps_for_its_speed_only_when_n
                                    pytest.param(True, id="debug", marks=pytest.mark.slow)])
 def test_the_frames_own_substep_check_and_choice_agree_with_the_numpy_choice(debug):
     """The all-pairs frame checks on the device whether the configured substeps suffice
-    (solver.summary.substeps_suffice) and only otherwise leaves the choice to numpy
+    (solver.summary.substeps_needed) and only otherwise leaves the choice to numpy
     (Scene._substeps_for_next_frame): on seeded random states of a static ground, two rigid
     bodies and a soft ball (moved apart or together, random linear and angular velocities,
     a random wobble of the ball's particles), the frame runs exactly when numpy would keep
     the configured substeps, and leaves the state untouched when it would not. Asked to
-    choose (solver.summary.substeps_needed), it runs as many substeps as numpy chooses and
+    choose, it runs as many substeps as numpy chooses and
     ends in the same state, to the bit, as the frame stepped with numpy's count.
 
     Run in a fresh process: in three of about eight full runs the test worker died here
