@@ -2,7 +2,8 @@
 runs it (frames rendered, the independent measure on every frame), in one process, with the
 parts timed: Taichi's start, building the scene, the first step (compiling the frame kernels;
 run twice on the same machine to see it with a warm kernel cache), the other steps, the
-penetration measure, rasterising, PNG encoding and writing, plots.png, and the rest (final
+penetration measure, a soft body's check of its own crossings ("self"), rasterising, PNG
+encoding and writing, plots.png, and the rest (final
 meshes, metrics files). The page (index.html) is timed once at the end; the contact sheet is
 not made.
 
@@ -25,7 +26,7 @@ from taichi_dcd.output import render, report, run
 from taichi_dcd.scene import scene as scene_module
 from taichi_dcd.scene.builtin import ALL, builtin_scene
 
-PARTS = ("build", "first step", "steps", "measure", "rasterise", "png", "plots", "other")
+PARTS = ("build", "first step", "steps", "measure", "self", "rasterise", "png", "plots", "other")
 seconds: dict[str, float] = defaultdict(float)
 
 
@@ -63,6 +64,7 @@ def main() -> None:
 
     Scene.step = step_timed
     Scene.penetration = timed("measure", Scene.penetration)
+    Scene.self_penetration = timed("self", Scene.self_penetration)
     render.Rasterizer.render = timed("rasterise", render.Rasterizer.render)
     render.write_png = timed("png", render.write_png)
     report.plot_run = timed("plots", report.plot_run)
