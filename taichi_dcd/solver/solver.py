@@ -42,7 +42,6 @@ from ..core import runtime
 from ..core.launch import Launcher
 from ..core.model import RIGID, STATIC, Model, State
 from .fields import solver_fields
-from .tunnelling import MAX_SUBSTEP_FACTOR
 from .kernels import (
     OVERFLOW,
     begin_rows,
@@ -55,6 +54,7 @@ from .kernels import (
     solve_islands,
     summarize_kernel,
 )
+from .tunnelling import MAX_SUBSTEP_FACTOR
 
 
 # Above this many triangle pairs between body boxes (summed over body pairs, upper
@@ -178,6 +178,9 @@ class XPBDSolver:
         self.launch = Launcher()
         self.centre_vec = ti.Vector(list(self.scene_centre))
         self.gravity_vec = ti.Vector(list(self.gravity))
+        # The last step_frames call's frames that ran more substeps than asked, and the most
+        # a frame ran (choose_substeps).
+        self.more_substeps = (0, 0)
         # Set to a dict to have the grid path add up the wall seconds of its phases
         # ("predict", "broad", "narrow", "projection"); costs a sync per phase.
         self.phase_seconds: dict | None = None

@@ -83,8 +83,8 @@ def test_the_frames_own_substep_check_and_choice_agree_with_the_numpy_choice(deb
     bodies and a soft ball (moved apart or together, random linear and angular velocities,
     a random wobble of the ball's particles), the frame runs exactly when numpy would keep
     the configured substeps, and leaves the state untouched when it would not. Asked to
-    choose, it runs as many substeps as numpy chooses and
-    ends in the same state, to the bit, as the frame stepped with numpy's count.
+    choose, it runs as many substeps as numpy chooses and ends in the same state, to the bit,
+    as the frame stepped with numpy's count.
 
     Run in a fresh process: in three of about eight full runs the test worker died here
     without a word after a few hundred earlier tests (never when run alone; README, Tests);
