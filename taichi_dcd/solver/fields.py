@@ -41,9 +41,9 @@ _LAYOUT = {
     # Islands of rigid bodies joined by rows between them (union-find: each body's
     # parent, the root its own), and 1 at the root of an island of several bodies.
     "block_island": ("bodies", "int"), "block_coupled": ("bodies", "int"),
-    # 1 for a rigid body that a row of its island ties to a body LOADED_MASS_RATIO times heavier
-    # or more (solver.islands.mark_loaded), for the substep.
-    "block_loaded": ("bodies", "int"),
+    # Per rigid body, the mass (kg) of the heaviest rigid body a row of its island ties it to,
+    # its own if none (solver.islands.mark_loaded), for the substep.
+    "block_heaviest": ("bodies", "scalar"),
     # The roots of the islands with rows, the most work first, and the next one for a worker
     # to take (solver.islands.list_islands, solver.kernels.solve_islands).
     "island_list": ("bodies", "int"), "island_next": ("one", "int"),
