@@ -140,10 +140,17 @@ def write_contact(sim: ti.template(), rows: ti.template(), k: ti.i32, t_moved: t
     # and may correct more than its detected depth when its neighbours turn the body. Any
     # other deepest point (an edge crossing, a feature on a boundary) may carry a depth
     # measured along a poor normal: it corrects at most that depth.
-    tol = ti.static(runtime.tolerance())
-    at_vertex = bary_m.max() >= 1.0 - tol
-    if not (at_vertex and bary_o.min() >= -tol) and not involves_soft(sim, t_moved, t_other):
+    if not at_vertex_over_face(bary_m, bary_o) and not involves_soft(sim, t_moved, t_other):
         rows.budget[k] = ti.min(depth, rows.budget[k])
+
+
+@ti.func
+def at_vertex_over_face(bary_moved: vec3, bary_other: vec3) -> bool:
+    """Whether a row's anchors (barycentric on the moved and on the other triangle) are a vertex
+    of the moved triangle over the other's face, up to rounding: a plain vertex-face contact,
+    whose depth is measured along a normal that is right for it."""
+    tol = ti.static(runtime.tolerance())
+    return bary_moved.max() >= 1.0 - tol and bary_other.min() >= -tol
 
 
 @ti.func

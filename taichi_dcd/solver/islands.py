@@ -4,6 +4,7 @@ rows between them), on the bodies' motions linearised at the sweep's start."""
 import taichi as ti
 
 from ..contact.anchors import anchor_world
+from ..contact.rows import at_vertex_over_face
 from ..core import runtime
 from ..core.model import RIGID, STATIC
 from ..core.rigid import inv_mass_matrix_world, rotate_by
@@ -131,8 +132,7 @@ def load_budget_factor(sim: ti.template(), rows: ti.template(), k: ti.i32) -> fl
         b = sim.model.tri_body[tri[side]]
         if sim.model.body_kind[b] == RIGID:
             ratio = ti.max(ratio, sim.block_heaviest[b] / sim.body_mass[b])
-    tol = ti.static(runtime.tolerance())
-    at_vertex = rows.bary_moved[k].max() >= 1.0 - tol and rows.bary_other[k].min() >= -tol
+    at_vertex = at_vertex_over_face(rows.bary_moved[k], rows.bary_other[k])
     return ti.select(ratio >= LOAD_BUDGET_RATIO and at_vertex, 1.0 + ratio, 1.0)
 
 
