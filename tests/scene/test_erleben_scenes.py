@@ -38,6 +38,18 @@ def test_scene_settles_without_penetrating(scene_run, name):
     assert metrics["time_to_settle"] <= 5.0 - 0.2
 
 
+
+@pytest.mark.slow
+def test_more_sweeps_still_settle_the_wedges(f64, tmp_path):
+    """Raising the sweeps (the accuracy setting users trade speed for) must not keep a body
+    moving: at 64 sweeps a velocity pass that measured at the anchors but pushed at their
+    midpoint left the dropped wedge sliding at 0.2-0.4 m/s to the end of its 5 s."""
+    assert main(["run", "wedges", "--no-frames", "--quiet", "--iterations", "64", "--out", str(tmp_path)]) == 0
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["settings"]["iterations"] == 64
+    assert verdict(metrics) is None, verdict(metrics)
+    assert metrics["time_to_settle"] <= 5.0 - 0.2
+
 def test_run_command_reports_and_writes_the_run(f64, tmp_path, capsys):
     assert main(["run", "spike-in-hole", "--no-frames", "--quiet", "--frames", "20", "--out", str(tmp_path)]) == 0
     metrics = json.loads((tmp_path / "metrics.json").read_text())
