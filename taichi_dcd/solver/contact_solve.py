@@ -142,35 +142,32 @@ def solve_contact_velocity(sim: ti.template(), rows: ti.template(), k: ti.i32, h
     sequential impulses): the normal relative velocity is driven to max(−e·v_n⁰, 0)
     (e = 0 below 2|g|h, so resting stays resting), and the accumulated dynamic-friction
     impulse cancels the tangential velocity within what static friction left of Coulomb's
-    bound: |J_t| ≤ (μ·λ_n − λ_t)/h. The impulses act at the anchors' midpoint p_c, equal and
-    opposite (momentum and angular momentum kept), and the rigid bodies' velocities and
-    inverse masses are taken there too. Taken at the anchors instead, a friction impulse or
-    a row whose anchors slipped apart changed the velocity by other than what the pass
-    divided by: Erleben's wedges never settled at 64 sweeps (0.2-0.4 m/s at 2-5 s), and at 8
-    sweeps with 64 of this pass it gained 20 times its kinetic energy and fell 0.11 m in."""
+    bound: |J_t| ≤ (μ·λ_n − λ_t)/h."""
     if rows.lambda_n[k] > 0.0:
         tri = rows.tri[k]
         bm, bo = rows.bary_moved[k], rows.bary_other[k]
         n = rows.normal[k]
-        p_c = 0.5 * (anchor_world(sim, tri[0], bm, False) + anchor_world(sim, tri[1], bo, False))
+        p_m = anchor_world(sim, tri[0], bm, False)
+        p_o = anchor_world(sim, tri[1], bo, False)
+        p_c = 0.5 * (p_m + p_o)
         body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
         e = 0.5 * (sim.model.body_restitution[body_m] + sim.model.body_restitution[body_o])
         vn0 = rows.vn0[k]
         if ti.abs(vn0) <= 2.0 * g_norm * h:
             e = 0.0
-        v = anchor_velocity(sim, tri[0], bm, p_c) - anchor_velocity(sim, tri[1], bo, p_c)
+        v = anchor_velocity(sim, tri[0], bm, p_m) - anchor_velocity(sim, tri[1], bo, p_o)
         f_m, f_o = takes_part(sim, tri[0], tri[1]), takes_part(sim, tri[1], tri[0])
-        w_n = f_m * anchor_inv_mass(sim, tri[0], bm, p_c, n) + f_o * anchor_inv_mass(sim, tri[1], bo, p_c, n)
+        w_n = f_m * anchor_inv_mass(sim, tri[0], bm, p_m, n) + f_o * anchor_inv_mass(sim, tri[1], bo, p_o, n)
         if w_n > 0.0:
             impulse = ((ti.max(-e * vn0, 0.0) - v.dot(n)) / w_n) * n
             anchor_kick(sim, tri[0], bm, p_c, f_m * impulse)
             anchor_kick(sim, tri[1], bo, p_c, -f_o * impulse)
-        v = anchor_velocity(sim, tri[0], bm, p_c) - anchor_velocity(sim, tri[1], bo, p_c)
+        v = anchor_velocity(sim, tri[0], bm, p_m) - anchor_velocity(sim, tri[1], bo, p_o)
         vt = v - v.dot(n) * n
         vt_len = vt.norm()
         if vt_len > 0.0:
             t = vt / vt_len
-            w_t = f_m * anchor_inv_mass(sim, tri[0], bm, p_c, t) + f_o * anchor_inv_mass(sim, tri[1], bo, p_c, t)
+            w_t = f_m * anchor_inv_mass(sim, tri[0], bm, p_m, t) + f_o * anchor_inv_mass(sim, tri[1], bo, p_o, t)
             if w_t > 0.0:
                 mu = pair_friction(sim, tri[0], tri[1])
                 # The position pass already spent λ_t/h of the Coulomb bound μ·λ_n/h.
