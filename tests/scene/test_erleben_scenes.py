@@ -38,10 +38,9 @@ def test_scene_settles_without_penetrating(scene_run, name):
     assert metrics["time_to_settle"] <= 5.0 - 0.2
 
 
-
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="at 64 sweeps the dropped wedge still slides at 0.2-0.4 m/s at 5 s: the "
-                   "velocity pass measures at the anchors and pushes at their midpoint (docs/experiments.md, "
+@pytest.mark.xfail(strict=True, reason="at 64 sweeps the dropped wedge still slides at 0.2-0.4 m/s at 5 s; the cause is the "
+                   "velocity pass likely, measuring at the anchors but pushing at their midpoint (docs/experiments.md, "
                    "2026-11-28 afternoon)")
 def test_more_sweeps_still_settle_the_wedges(f64, tmp_path):
     """Raising the sweeps (the accuracy setting users trade speed for) must not keep a body
