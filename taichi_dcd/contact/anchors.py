@@ -141,14 +141,14 @@ def longest_edge(sim: ti.template(), t: ti.i32) -> float:
 
 
 @ti.func
-def target_inside(sim: ti.template(), t_moved: ti.i32, target: vec3) -> bool:
-    """Whether `target` lies behind t_moved's plane by more than rounding."""
+def target_inside(sim: ti.template(), t_moved: ti.i32, target: vec3, margin: float) -> bool:
+    """Whether `target` lies behind t_moved's plane by more than `margin` (m) and rounding."""
     tol = ti.static(runtime.tolerance())
     im = sim.model.tri_indices[t_moved]
     m0, m1, m2 = sim.state.vertex_x[im[0]], sim.state.vertex_x[im[1]], sim.state.vertex_x[im[2]]
     raw = (m1 - m0).cross(m2 - m0)
     length = raw.norm()
-    return length > 0.0 and raw.dot(m0 - target) > tol * ti.sqrt(longest_edge_sq(m0, m1, m2)) * length
+    return length > 0.0 and raw.dot(m0 - target) > ti.max(tol * ti.sqrt(longest_edge_sq(m0, m1, m2)), margin) * length
 
 
 @ti.func

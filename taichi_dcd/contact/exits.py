@@ -81,7 +81,8 @@ def convex_neighbours(model: Model, vertex_x: np.ndarray) -> np.ndarray:
 
 
 @ti.func
-def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float, normal: vec3, may_hold: bool):
+def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float, normal: vec3, may_hold: bool,
+                 exit_first: bool):
     """The face a contact's point leaves the other body through: t_other's plane, where
     the narrow phase measured `depth` along `normal`, or the plane of a convex neighbour
     of t_other (tri_convex_nbr) behind which the point lies by less than
@@ -91,9 +92,10 @@ def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float,
     (0.24 m), not the 1e-5 m it is below the top; pushed along the side's normal every
     substep, the wedge crept off the edge. A point on a convex neighbour's plane (within
     rounding) is on the other body's surface, not in it; where the caller found the row
-    a grazing one (`may_hold`: add_pair_contact), it becomes a row along that
-    neighbour's normal at depth 0, holding the point there. Returns (triangle, depth,
-    unit normal, whether the point is held on the surface)."""
+    a grazing one (`may_hold`: add_pair_contact), it becomes a row along that neighbour's
+    normal at depth 0, holding the point there; with `exit_first`, only if no neighbour is
+    an exit. Returns (triangle, depth, unit normal, whether the point is held on the
+    surface)."""
     tol = ti.static(runtime.tolerance())
     t_best, d_best, n_best = t_other, depth, normal
     on_surface = False
@@ -118,6 +120,8 @@ def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float,
                 elif ti.abs(d) <= floor and not on_surface and may_hold:
                     on_surface = True
                     t_surface, n_surface = t, n_t
+    if exit_first and t_best != t_other:
+        on_surface = False
     if on_surface:
         t_best, d_best, n_best = t_surface, 0.0, n_surface
     return t_best, d_best, n_best, on_surface

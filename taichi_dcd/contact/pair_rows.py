@@ -44,26 +44,34 @@ def exit_of_deep_row(sim: ti.template(), t_m: ti.i32, t_o: ti.i32, point: vec3, 
                      max_push: float, both_moving: bool):
     """Rules `nearest_exit` and `surface_points` for a row deeper than the substep's allowance
     between rigid or static bodies: it leaves through the nearest convex neighbour's face
-    (contact.exits.nearest_exit), and a grazing row between two moving bodies whose point is on
-    that neighbour's plane is held there at depth 0. Grazing: a depth this substep's motion
-    cannot have made, to a target outside the moved body. Prevents (surface points): a box
-    resting on a free box turned 7° from it sinks ~1e-5 m a substep, its side faces cross the
-    lower box's side faces in strips that high near its top corners, Eq. 6 measured those pairs
-    from a corner of one box pushed onto the other's side plane (0.03-0.24 m sideways), and the
-    sideways pushes kept the upper box jittering at 0.01-0.1 m/s. A wedge's rows at a crack's
-    rim look alike but reach a rim inside the wedge: they keep their depth (held at depth 0
-    without the target test, the wedge ended 1 mm inside the crack block; dropped, 8 mm). Rows
-    against static bodies are left to the static blocks: held, the pile crept and `wedges` x1e3
-    parted from x1 at its first contact. Returns (other triangle, depth, normal, held)."""
+    (contact.exits.nearest_exit), and a grazing row whose point is on that neighbour's plane is
+    held there at depth 0. Grazing: a depth this substep's motion cannot have made, to a target
+    outside the moved body (against a static body: no deeper than the allowance behind the
+    moved face). Prevents (surface points): a box resting on a free box turned 7° from it sinks
+    ~1e-5 m a substep, its side faces cross the lower box's side faces in strips that high near
+    its top corners, Eq. 6 measured those pairs from a corner of one box pushed onto the other's
+    side plane (0.03-0.24 m sideways), and the sideways pushes kept the upper box jittering at
+    0.01-0.1 m/s. Against a static body alike: a box on a block whose side plane it shares (set
+    1e-12 m off its footprint, or 0.3 m along one side) had a row from the block's side face,
+    its point on the box's bottom edge, 0.7 m deep along the box's end face, and was thrown
+    1-4 cm; a box turned by 5e-12 rad put that row's target 3.5e-12 m behind the block's face,
+    hence the allowance. A wedge's rows at a crack's rim look alike but reach a rim inside the
+    wedge: they keep their depth (held at depth 0 without the target test, the wedge ended 1 mm
+    inside the crack block; dropped, 8 mm). Returns (other triangle, depth, normal, held)."""
     on_surface = False
     if ti.static(sim.rules.nearest_exit or sim.rules.surface_points):
-        # (Nested: Taichi evaluates both sides of `and`.)
         may_hold = False
         if ti.static(sim.rules.surface_points):
-            if both_moving:
-                may_hold = (depth > max_push + approach(sim, t_m, t_o, point, depth, normal)
-                            and not target_inside(sim, t_m, point + depth * normal))
-        t_exit, d_exit, n_exit, on_surface = nearest_exit(sim, t_o, point, depth, normal, may_hold)
+            # (Nested: Taichi evaluates both sides of `and`.)
+            if depth > max_push + approach(sim, t_m, t_o, point, depth, normal):
+                margin = ti.select(both_moving, 0.0, max_push)
+                may_hold = not target_inside(sim, t_m, point + depth * normal, margin)
+        # Against a static body a point behind another neighbour's plane leaves through it: at a
+        # box's bottom edge on a block of its footprint the point lies in the end face's plane and
+        # the substep's sink below the bottom, and that sink is its depth. (Between moving bodies
+        # the held point comes first: leaving, a stack of five turned boxes crept at 2 mm/s.)
+        t_exit, d_exit, n_exit, on_surface = nearest_exit(sim, t_o, point, depth, normal, may_hold,
+                                                          not both_moving)
         if ti.static(sim.rules.nearest_exit):
             t_o, depth, normal = t_exit, d_exit, n_exit
         elif on_surface:
@@ -88,7 +96,7 @@ def resting_row_approached(sim: ti.template(), t_m: ti.i32, t_o: ti.i32, point: 
     keep = True
     if ti.static(sim.rules.surface_points):
         if not both_moving:
-            t_exit, d_exit, n_exit, on_other = nearest_exit(sim, t_o, point, depth, normal, True)
+            t_exit, d_exit, n_exit, on_other = nearest_exit(sim, t_o, point, depth, normal, True, False)
             if on_other:
                 keep = approach(sim, t_m, t_o, point, depth, normal) >= SURFACE_APPROACH_FRACTION * depth
     return keep
@@ -148,7 +156,7 @@ def add_pair_contact(sim: ti.template(), rows: ti.template(), n: ti.i32, ab: ive
             # Prevents: a cloth triangle lying over a box's top corner measured 5.6 cm deep from
             # a side face, and its row pushed the sheet sideways a budget's worth each substep.
             if depth > max_push and sim.model.body_kind[sim.model.tri_body[t_o]] != SOFT:
-                t_o, depth, normal, _ = nearest_exit(sim, t_o, point, depth, normal, False)
+                t_o, depth, normal, _ = nearest_exit(sim, t_o, point, depth, normal, False, False)
     if keep:
         # (Not `or`: Taichi would walk the row chain for a touching row too.)
         duplicate = touching
