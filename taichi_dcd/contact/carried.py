@@ -8,7 +8,7 @@ import taichi as ti
 from ..core.model import SOFT, STATIC
 from .anchors import anchor_world, involves_soft
 from .cloth import is_cloth, pair_gap
-from .rows import has_pair_row, start_row
+from .rows import both_rigid, has_pair_row, start_row
 from .sleeping import is_moving
 
 ivec2 = ti.types.vector(2, ti.i32)
@@ -126,8 +126,14 @@ def carried_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, max_pus
     projection; without the other's row, which detection made before the push, it ends
     the substep inside that one and the next substep pushes it back, a cycle that never
     comes to rest. Such a row holds C = N·(p_other − p_moved) ≥ 0 and does nothing
-    unless it is crossed. A pair of which neither body is moving (static or asleep) is not
-    offered. Rows go after row total-1 while they fit; returns the row count."""
+    unless it is crossed. Between two rigid bodies it holds C where the last substep left it
+    (C less this substep's approach, if that is smaller; 0 at least): it keeps the support
+    from closing in and leaves older depth to the rows detected now. Pushing that depth out
+    as well, rows carried from where a box's corner had landed in the box below pushed it
+    sideways with up to five times its weight a substep, and a ten-box stack came to rest
+    0.1-1.3 mm from its place (now 0.1 mm). A pair of which neither body is moving (static
+    or asleep) is not offered. Rows go after row total-1 while they fit; returns the row
+    count."""
     n_rows = total
     for j in range(sim.carry_count[0]):
         pair = sim.carry_tri[j]
@@ -136,7 +142,10 @@ def carried_rows(sim: ti.template(), rows: ti.template(), total: ti.i32, max_pus
             bm, bo, normal = sim.carry_bary_moved[j], sim.carry_bary_other[j], sim.carry_normal[j]
             p_m = anchor_world(sim, pair[0], bm, False)
             p_o = anchor_world(sim, pair[1], bo, False)
-            start_row(sim, rows, n_rows, pair[0], pair[1], bm, bo, normal, p_m, p_o, max_push)
+            approach = start_row(sim, rows, n_rows, pair[0], pair[1], bm, bo, normal, p_m, p_o, max_push)
+            if ti.static(sim.rules.carried_hold):
+                if both_rigid(sim, pair[0], pair[1]):
+                    rows.hold[n_rows] = ti.max(normal.dot(p_o - p_m) - ti.max(approach, 0.0), 0.0)
             if involves_soft(sim, pair[0], pair[1]):
                 # A soft row's budget is the depth it may leave (less the pair's gap).
                 rows.budget[n_rows] = 0.0 - pair_gap(sim, pair[0], pair[1])

@@ -26,6 +26,10 @@ class ContactRules:
     sharp_edge_rows: sharp convex edges under a soft triangle get rows.
     carried_rows: rows that pushed in one substep are offered again in the next.
     opposed_rows: a carried row is let go when a row of the same bodies pushes back against it.
+    carried_hold: a row carried between two rigid bodies holds its gap instead of pushing out
+        older depth (contact.carried).
+    near_vertex: between two rigid bodies a point a hair from a vertex over the other face is that
+        vertex, and its budget is not capped at its depth (contact.rows).
     shock_propagation: a light body under a much heavier one holds still in their contact.
     """
 
@@ -43,6 +47,8 @@ class ContactRules:
     sharp_edge_rows: bool = True
     carried_rows: bool = True
     opposed_rows: bool = True
+    carried_hold: bool = True
+    near_vertex: bool = True
     shock_propagation: bool = True
 
     @classmethod

@@ -132,7 +132,7 @@ def load_budget_factor(sim: ti.template(), rows: ti.template(), k: ti.i32) -> fl
         b = sim.model.tri_body[tri[side]]
         if sim.model.body_kind[b] == RIGID:
             ratio = ti.max(ratio, sim.block_heaviest[b] / sim.body_mass[b])
-    at_vertex = at_vertex_over_face(rows.bary_moved[k], rows.bary_other[k])
+    at_vertex = at_vertex_over_face(rows.bary_moved[k], rows.bary_other[k], 0.0)
     return ti.select(ratio >= LOAD_BUDGET_RATIO and at_vertex, 1.0 + ratio, 1.0)
 
 
@@ -425,7 +425,7 @@ def project_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, fricti
     slip = rows.block_slip[k] + d - d.dot(n) * n
     k_mat = rows.block_k[k]
     gap = rows.block_gap[k] - n.dot(d)
-    c = ti.max(ti.select(leave, gap - rows.budget[k], ti.min(gap, rows.budget[k])), 0.0)
+    c = ti.max(ti.select(leave, gap - rows.budget[k], ti.min(gap - rows.hold[k], rows.budget[k])), 0.0)
     lam_n = rows.lambda_n[k]
     w = n.dot(k_mat @ n)
     if (c > 0.0 or lam_n > 0.0) and w > 0.0:
