@@ -26,9 +26,9 @@ DEDUP_MAX_ROWS = 4096
 # counts as that vertex over the face (write_contact: its budget is not capped at its depth).
 # Where boxes of one footprint stand on each other, their side faces cross at the corners 4 µm
 # (1e-5 of the edge) from the vertex: capped there and not on the corners whose pair met the
-# vertex itself, the rows spent their budget on one side as the box tilted, and each box of a
-# ten-box stack landed deeper than the one below (0.15-0.34 mm; now one substep's fall). At
-# 1e-3 the landing boxes bounced 50 µm up.
+# vertex itself, the rows spent their budget on one side as the box tilted: each box of a
+# ten-box stack landed deeper than the one below (up to 0.34 mm), and a three-box stack rested
+# 6.4 µm into itself (now 3e-10 m). At 1e-3 the landing boxes bounced 50-170 µm up.
 NEAR_VERTEX_WEIGHT = 1e-4
 
 

@@ -58,7 +58,8 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                       cap: ti.i32, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                       c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                      c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                      c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                      c_hold: ti.types.ndarray(ndim=1),
                       c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                       c_vn0: ti.types.ndarray(ndim=1),
                       c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -76,8 +77,8 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
     begun, contacts of the last substep, status: 0, NEEDS_CHOICE, OVERFLOW or -1 - first
     bad body, the bad frame counted as done; frames run with more substeps, the most
     substeps of a frame, the substeps they ran beyond `substeps`)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     done = 0
     most = 0
     n = 0
@@ -146,7 +147,8 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
                  c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                  c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_hold: ti.types.ndarray(ndim=1),
                  c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_vn0: ti.types.ndarray(ndim=1),
                  c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -156,8 +158,8 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
                  b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
     """The grid's contacts into rows, projection and velocities of one substep (the same
     sequence as the all-pairs path, solver.substep). Returns (contacts, state check)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
     n = 0
     status = 0
@@ -182,7 +184,8 @@ def begin_rows(sim: ti.template(), depenetration: float, h: float, n_pairs: ti.i
                  c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                  c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_hold: ti.types.ndarray(ndim=1),
                  c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_vn0: ti.types.ndarray(ndim=1),
                  c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -193,8 +196,8 @@ def begin_rows(sim: ti.template(), depenetration: float, h: float, n_pairs: ti.i
     """The substep's rows from the grid's contacts, what the sweeps share, the rows linearised
     for the first sweep and grouped into islands, the islands listed (serial). Returns (rows,
     islands)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
     n = 0
     count = 0
@@ -211,7 +214,8 @@ def solve_islands(sim: ti.template(), count: ti.i32, iterations: ti.i32,
                  c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                  c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_hold: ti.types.ndarray(ndim=1),
                  c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_vn0: ti.types.ndarray(ndim=1),
                  c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -221,8 +225,8 @@ def solve_islands(sim: ti.template(), count: ti.i32, iterations: ti.i32,
                  b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     """Each of the `count` listed islands through all its sweeps by one worker, the workers in
     parallel, each taking the next island until none is left (islands.solve_island)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     for _ in range(ISLAND_WORKERS):
         i = next_island(sim, count)
         while i >= 0:
@@ -235,7 +239,8 @@ def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm
                  c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                  c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                 c_hold: ti.types.ndarray(ndim=1),
                  c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                  c_vn0: ti.types.ndarray(ndim=1),
                  c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -245,8 +250,8 @@ def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm
                  b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
     """After the sweeps (serial): velocities, the velocity pass, carried rows, sleep, the
     vertices placed and the state checked (state_is_sane's status)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     status = 0
     ti.loop_config(serialize=True)
     for _ in range(1):
@@ -258,7 +263,8 @@ def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm
 def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
                    c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
                    c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                   c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1), c_hold: ti.types.ndarray(ndim=1),
+                   c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                   c_hold: ti.types.ndarray(ndim=1),
                    c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
                    c_vn0: ti.types.ndarray(ndim=1),
                    c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
@@ -267,8 +273,8 @@ def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.nd
                    b_k: ti.types.ndarray(dtype=mat3, ndim=1),
                    b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
     """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n, c_lambda_t,
-                                 c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     needed = 0
     n = 0
     ti.loop_config(serialize=True)
