@@ -4,7 +4,7 @@ rows between them), on the bodies' motions linearised at the sweep's start."""
 import taichi as ti
 
 from ..contact.anchors import anchor_world
-from ..contact.rows import at_vertex_over_face
+from ..contact.rows import at_vertex_over_face, both_rigid
 from ..core import runtime
 from ..core.model import RIGID, STATIC
 from ..core.rigid import inv_mass_matrix_world, rotate_by
@@ -54,9 +54,7 @@ def block_body(sim: ti.template(), rows: ti.template(), k: ti.i32) -> ti.i32:
 @ti.func
 def pair_block(sim: ti.template(), rows: ti.template(), k: ti.i32) -> bool:
     """Whether row k is between two rigid bodies (solved in the coupled block)."""
-    tri = rows.tri[k]
-    b_m, b_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
-    return sim.model.body_kind[b_m] == RIGID and sim.model.body_kind[b_o] == RIGID
+    return both_rigid(sim, rows.tri[k][0], rows.tri[k][1])
 
 
 @ti.func
