@@ -44,9 +44,11 @@ _LAYOUT = {
     # Per rigid body, the mass (kg) of the heaviest rigid body a row of its island ties it to,
     # its own if none (solver.islands.mark_loaded), for the substep.
     "block_heaviest": ("bodies", "scalar"),
-    # The roots of the islands with rows, the most work first, and the next one for a worker
-    # to take (solver.islands.list_islands, solver.kernels.solve_islands).
-    "island_list": ("bodies", "int"), "island_next": ("one", "int"),
+    # The roots of the islands with rows, the most work first, how many, and the next one for a
+    # worker to take; the substep's rows (solver.islands.list_islands,
+    # solver.kernels.end_substep_islands).
+    "island_list": ("bodies", "int"), "island_count": ("one", "int"), "island_next": ("one", "int"),
+    "island_rows": ("one", "int"),
     # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].
     "island_bodies": ("bodies", "int"), "island_body_first": ("bodies", "int"),
     "island_body_count": ("bodies", "int"),

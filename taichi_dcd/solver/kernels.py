@@ -174,90 +174,53 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
 # bodies only (every row a block row): end_substep's functions in the same order per island,
 # each island taken by one worker through all its sweeps (solver.Solver._step_grid). An island
 # touches only its own bodies and rows, so the result is end_substep's bits on any number of
-# threads, in three launches a substep.
+# threads. One launch: its serial and parallel parts are tasks of one kernel (three launches
+# cost ~0.7 ms a substep more in the pile's landing, docs/experiments.md).
 
 @ti.kernel
-def begin_rows(sim: ti.template(), depenetration: float, h: float, n_pairs: ti.i32,
-                 p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
-                 p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
-                 p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_hold: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
-    """The substep's rows from the grid's contacts, what the sweeps share, the rows linearised
-    for the first sweep and grouped into islands, the islands listed (serial). Returns (rows,
-    islands)."""
+def end_substep_islands(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
+                        top_speed: float, depenetration: float, n_pairs: ti.i32,
+                        p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
+                        p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
+                        p_point: ti.types.ndarray(dtype=vec3, ndim=1),
+                        c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                        c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                        c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                        c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                        c_hold: ti.types.ndarray(ndim=1),
+                        c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                        c_vn0: ti.types.ndarray(ndim=1),
+                        c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                        b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                        b_gap: ti.types.ndarray(ndim=1),
+                        b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                        b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+    """end_substep with the islands shared out among threads, in one launch: the rows and the
+    islands listed (serial), each island through all its sweeps by one worker (parallel), then
+    velocities, carried rows, sleep and the state check (serial). Returns (rows, state check)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
                                  c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
-    n = 0
-    count = 0
     ti.loop_config(serialize=True)
     for _ in range(1):
         n = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
         project_begin(sim, rows, n)
+        count = 0
         if group_blocks(sim, rows, n) > 0:
             count = list_islands(sim)
-    return ti.Vector([n, count])
-
-@ti.kernel
-def solve_islands(sim: ti.template(), count: ti.i32, iterations: ti.i32,
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_hold: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    """Each of the `count` listed islands through all its sweeps by one worker, the workers in
-    parallel, each taking the next island until none is left (islands.solve_island)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+        sim.island_count[0] = count
+        sim.island_rows[0] = n
     for _ in range(ISLAND_WORKERS):
-        i = next_island(sim, count)
+        i = next_island(sim, sim.island_count[0])
         while i >= 0:
             solve_island(sim, rows, sim.island_list[i], iterations)
-            i = next_island(sim, count)
-
-@ti.kernel
-def end_rows(sim: ti.template(), n: ti.i32, iterations: ti.i32, h: float, g_norm: float, depenetration: float,
-                 centre: vec3, bound: float, top_speed: float,
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_hold: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.i32:
-    """After the sweeps (serial): velocities, the velocity pass, carried rows, sleep, the
-    vertices placed and the state checked (state_is_sane's status)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+            i = next_island(sim, sim.island_count[0])
     status = 0
     ti.loop_config(serialize=True)
     for _ in range(1):
-        finish_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
+        finish_rows(sim, rows, sim.island_rows[0], iterations, h, g_norm, depenetration * h)
         status = placed_and_checked(sim, centre, bound, top_speed)
-    return status
+    return ti.Vector([sim.island_rows[0], status])
 
 @ti.kernel
 def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),

@@ -44,14 +44,12 @@ from ..core.model import RIGID, STATIC, Model, State
 from .fields import solver_fields
 from .kernels import (
     OVERFLOW,
-    begin_rows,
     begin_substep,
     copy_prev_positions,
-    end_rows,
     end_substep,
+    end_substep_islands,
     frames_all_pairs,
     rows_at_state_kernel,
-    solve_islands,
     summarize_kernel,
 )
 from .tunnelling import MAX_SUBSTEP_FACTOR
@@ -308,20 +306,6 @@ class XPBDSolver:
         return (f"body {info.name!r} left the scene ({away:.3g} m from where the bodies started, more than "
                 f"{self.bound:.3g} m)")
 
-    def _solve_in_islands(self, pc, iterations: int, h: float, g_norm: float, top_speed: float) -> tuple[int, int]:
-        """end_substep's work with the islands shared out among threads (kernels.solve_islands).
-        Returns (rows solved, state check)."""
-        rows = self.contacts.arrays()
-        n, count = (int(v) for v in self.launch(begin_rows, self.sim, float(self.depenetration_speed), float(h),
-                                                 int(pc.count), pc.pair, pc.depth, pc.normal, pc.side, pc.point,
-                                                 *rows))
-        if count > 0:
-            self.launch(solve_islands, self.sim, count, int(iterations), *rows)
-        status = int(self.launch(end_rows, self.sim, n, int(iterations), float(h), float(g_norm),
-                                 float(self.depenetration_speed), self.centre_vec, float(self.bound),
-                                 float(top_speed), *rows))
-        return n, status
-
     def _frames_advanced(self, frames: int, frame_dt: float, substeps: int, count: int) -> None:
         for _ in range(frames):  # time as a sum of frames, as if stepped one by one
             self.state.frames_done += 1
@@ -352,7 +336,10 @@ class XPBDSolver:
                 self.contacts.grow(wanted)
                 self.contact_growths += 1
             if self.parallel_islands:
-                n, status = self._solve_in_islands(pc, iterations, h, g_norm, top_speed)
+                n, status = (int(v) for v in self.launch(
+                    end_substep_islands, self.sim, int(iterations), float(h), float(g_norm), self.centre_vec,
+                    float(self.bound), float(top_speed), float(self.depenetration_speed), int(pc.count), pc.pair,
+                    pc.depth, pc.normal, pc.side, pc.point, *self.contacts.arrays()))
             else:
                 n, status = (int(v) for v in end_substep(
                     self.sim, iterations, h, g_norm, self.centre_vec, self.bound, top_speed,
