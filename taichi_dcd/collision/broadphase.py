@@ -426,13 +426,15 @@ class UniformGrid:
     (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
     never binned, so in no pair (faces hidden against another static body, contact/hidden_faces.py).
     body_self (n_bodies,) bool: bodies whose own triangles pair too (those not near neighbours:
-    core.geometry.near_in_mesh).
+    core.geometry.near_in_mesh). ordered: the pairs come out in the same order on any number of
+    CPU threads (the loops run serially on the CPU; runtime.serial_loops).
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0, tri_hidden=None,
-                 body_self=None):
+                 body_self=None, ordered: bool = False):
         runtime.ensure_init()
+        self.ordered = bool(ordered)
         tri_indices = np.ascontiguousarray(tri_indices, dtype=np.int32).reshape(-1, 3)
         m = len(tri_indices)
         tri_body = np.ascontiguousarray(tri_body, dtype=np.int32)
@@ -535,7 +537,8 @@ class UniformGrid:
             entries = self._launch(_bin_group, particle_x, self.particle_body, self.tri, self.tri_level, self.tri_box,
                                    self.body_group, self.body_self, self.body_box, self.group_count,
                                    *table.arrays(),
-                                   group, pad, 1.0 / self.cell_size, runtime.serial_loops(self.n_tris))
+                                   group, pad, 1.0 / self.cell_size,
+                                   runtime.serial_loops(self.n_tris, self.ordered))
             if entries <= table.capacity:
                 break
             table.grow(entries)
@@ -572,7 +575,7 @@ class UniformGrid:
                 self.particle_built.copy_from(particle_x)
                 self._moving_binned = True
         moving, static = self.tables
-        serial = runtime.serial_loops(moving.entries)
+        serial = runtime.serial_loops(moving.entries, self.ordered)
         while True:
             n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level,
                              self.tri_box, self.group_count, moving.bucket_end, moving.bucket_bodies,

@@ -100,13 +100,15 @@ class CollisionPipeline:
     (collision.two_sided), and `run` then needs the positions at the substep's start too.
     tri_self_gap (m,) float: the gap (m) two triangles of the same body keep from each other
     (a closed soft body's walls), 0 for none; such a pair is tested moved together by it.
+    ordered: the contacts come out in the same order on any number of CPU threads (as a
+    solver needs: their order is its sweeps' order), the loops running serially on the CPU.
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
                  skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None,
-                 body_self=None, tri_sheet_gap=None, tri_self_gap=None):
+                 body_self=None, tri_sheet_gap=None, tri_self_gap=None, ordered: bool = False):
         self.self_gaps = tri_self_gap is not None and bool(np.any(np.asarray(tri_self_gap) > 0.0))
         self.tri_self_gap = ti.ndarray(runtime.real_type(), shape=max(len(tri_indices), 1) if self.self_gaps else 1)
         if self.self_gaps:
@@ -118,7 +120,8 @@ class CollisionPipeline:
         self.keep_touching = bool(keep_touching)
         self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
-                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self)
+                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self,
+                                ordered=ordered)
         self.contacts = Contacts(contact_capacity)
         self._launch = Launcher()
 
@@ -141,8 +144,8 @@ class CollisionPipeline:
                                     c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
                                     self.tri_self_gap,
                                     particle_x if particle_x_prev is None else particle_x_prev,
-                                    runtime.serial_loops(n_pairs), self.keep_touching, self.keep_pressed,
-                                    self.two_sided, self.self_gaps)
+                                    runtime.serial_loops(n_pairs, self.grid.ordered), self.keep_touching,
+                                    self.keep_pressed, self.two_sided, self.self_gaps)
             if n <= c.capacity:
                 break
             c.grow(n)
