@@ -38,25 +38,38 @@ def wake_if_touched(sim: ti.template(), b_a: ti.i32, b_b: ti.i32):
 
 
 @ti.func
+def body_box(sim: ti.template(), b: ti.i32):
+    """Body b's vertex box into body_lo/body_hi (wake_near's first part; each body on its own)."""
+    lo = vec3(ti.math.inf)
+    hi = vec3(-ti.math.inf)
+    for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
+        lo = ti.min(lo, sim.state.vertex_x[i])
+        hi = ti.max(hi, sim.state.vertex_x[i])
+    sim.body_lo[b] = lo
+    sim.body_hi[b] = hi
+
+
+@ti.func
+def wake_touched(sim: ti.template()):
+    """wake_near's second part, on the boxes of body_box (serial: a body woken by one pair is
+    moving for the pairs after it)."""
+    n_b = sim.model.body_count[0]
+    for b_a in range(n_b):
+        for b_b in range(b_a + 1, n_b):
+            if sim.body_asleep[b_a] == 1 or sim.body_asleep[b_b] == 1:
+                pad = WAKE_REACH * ti.max(sim.body_reach[b_a], sim.body_reach[b_b])
+                near = ((sim.body_lo[b_a] - pad <= sim.body_hi[b_b]).all()
+                        and (sim.body_lo[b_b] - pad <= sim.body_hi[b_a]).all())
+                if near:
+                    wake_if_touched(sim, b_a, b_b)
+
+
+@ti.func
 def wake_near(sim: ti.template()):
     """Before a substep's prediction (serial): wake every sleeping body whose vertex box comes
     within WAKE_REACH of the larger reach of a moving body's box. Writes each body's vertex box
     to body_lo/body_hi (the all-pairs broad phase overwrites them with its own)."""
     if sim.sleep_time[0] > 0.0:
-        n_b = sim.model.body_count[0]
-        for b in range(n_b):
-            lo = vec3(ti.math.inf)
-            hi = vec3(-ti.math.inf)
-            for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
-                lo = ti.min(lo, sim.state.vertex_x[i])
-                hi = ti.max(hi, sim.state.vertex_x[i])
-            sim.body_lo[b] = lo
-            sim.body_hi[b] = hi
-        for b_a in range(n_b):
-            for b_b in range(b_a + 1, n_b):
-                if sim.body_asleep[b_a] == 1 or sim.body_asleep[b_b] == 1:
-                    pad = WAKE_REACH * ti.max(sim.body_reach[b_a], sim.body_reach[b_b])
-                    near = ((sim.body_lo[b_a] - pad <= sim.body_hi[b_b]).all()
-                            and (sim.body_lo[b_b] - pad <= sim.body_hi[b_a]).all())
-                    if near:
-                        wake_if_touched(sim, b_a, b_b)
+        for b in range(sim.model.body_count[0]):
+            body_box(sim, b)
+        wake_touched(sim)

@@ -9,7 +9,7 @@ import taichi as ti
 
 from ..collision.contacts import PairResults
 from ..contact.rows import ContactRows
-from ..contact.sleeping import wake_near
+from ..contact.sleeping import body_box, wake_touched
 from .integrate import place_vertex, predict
 from .islands import ISLAND_WORKERS, group_blocks, list_islands, next_island, solve_island
 from .substep import (
@@ -121,12 +121,20 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
 
 @ti.kernel
 def begin_substep(sim: ti.template(), h: float, gravity: vec3, kick: float,
-                   vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1)):
-    """Wake the sleeping bodies a moving one comes near (serially), predict every body and
-    particle in parallel and place the vertices for the grid."""
+                   vertex_nd: ti.types.ndarray(dtype=vec3, ndim=1), serial: ti.template()):
+    """Wake the sleeping bodies a moving one comes near (their boxes in parallel, the pairs
+    serially: contact.sleeping.wake_near), predict every body and particle in parallel and place
+    the vertices for the grid. serial: the bodies' boxes in one thread (runtime.serial_loops)."""
+    # Each body's box on its own where threads are cheap: on a GPU, one thread would read all of
+    # the pile's 64k vertices.
+    ti.loop_config(serialize=serial)
+    for b in range(sim.model.body_count[0]):
+        if sim.sleep_time[0] > 0.0:
+            body_box(sim, b)
     ti.loop_config(serialize=True)
     for _ in range(1):
-        wake_near(sim)
+        if sim.sleep_time[0] > 0.0:
+            wake_touched(sim)
     predict(sim, h, gravity, kick)
     for i in range(sim.model.vertex_count[0]):
         place_vertex(sim, i)
@@ -194,10 +202,13 @@ def end_substep_islands(sim: ti.template(), iterations: ti.i32, h: float, g_norm
                         b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                         b_gap: ti.types.ndarray(ndim=1),
                         b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                        b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+                        b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                        serial: ti.template()) -> ti.types.vector(2, ti.i32):
     """end_substep with the islands shared out among threads, in one launch: the rows and the
-    islands listed (serial), each island through all its sweeps by one worker (parallel), then
-    velocities, carried rows, sleep and the state check (serial). Returns (rows, state check)."""
+    islands listed (serial), each island through all its sweeps by one worker (parallel),
+    velocities, carried rows and sleep (serial), the vertices placed (in parallel unless
+    `serial`: runtime.serial_loops) and the state checked (serial). Returns (rows, state
+    check)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
                                  c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
@@ -215,11 +226,18 @@ def end_substep_islands(sim: ti.template(), iterations: ti.i32, h: float, g_norm
         while i >= 0:
             solve_island(sim, rows, sim.island_list[i], iterations)
             i = next_island(sim, sim.island_count[0])
-    status = 0
     ti.loop_config(serialize=True)
     for _ in range(1):
         finish_rows(sim, rows, sim.island_rows[0], iterations, h, g_norm, depenetration * h)
-        status = placed_and_checked(sim, centre, bound, top_speed)
+    # Each vertex on its own where threads are cheap: on a GPU, one thread placing the pile's
+    # 64k vertices took half of a free-falling substep.
+    ti.loop_config(serialize=serial)
+    for i in range(sim.model.vertex_count[0]):
+        place_vertex(sim, i)
+    status = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        status = state_is_sane(sim, centre, bound, top_speed)
     return ti.Vector([sim.island_rows[0], status])
 
 @ti.kernel

@@ -174,6 +174,9 @@ class XPBDSolver:
         # as one after another).
         self.parallel_islands = (self.use_grid and not m.has_soft and int((kind == RIGID).sum()) >= 2
                                  and several_threads())
+        # Loops over every vertex or body outside the solve: one thread on the CPU below
+        # runtime.PARALLEL_MIN_WORK, shared on a GPU.
+        self.serial_vertex_loops = runtime.serial_loops(m.n_vertices)
         self.launch = Launcher()
         self.centre_vec = ti.Vector(list(self.scene_centre))
         self.gravity_vec = ti.Vector(list(self.gravity))
@@ -322,7 +325,8 @@ class XPBDSolver:
         timing = self.phase_seconds
         for sub in range(substeps):
             start = time.perf_counter()
-            begin_substep(self.sim, h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd)
+            begin_substep(self.sim, h, gravity, first_kick if sub == 0 else 1.0, self.vertex_nd,
+                          self.serial_vertex_loops)
             if timing is not None:
                 ti.sync()
                 timing["predict"] = timing.get("predict", 0.0) + time.perf_counter() - start
@@ -340,7 +344,7 @@ class XPBDSolver:
                 n, status = (int(v) for v in self.launch(
                     end_substep_islands, self.sim, int(iterations), float(h), float(g_norm), self.centre_vec,
                     float(self.bound), float(top_speed), float(self.depenetration_speed), int(pc.count), pc.pair,
-                    pc.depth, pc.normal, pc.side, pc.point, *self.contacts.arrays()))
+                    pc.depth, pc.normal, pc.side, pc.point, *self.contacts.arrays(), self.serial_vertex_loops))
             else:
                 n, status = (int(v) for v in end_substep(
                     self.sim, iterations, h, g_norm, self.centre_vec, self.bound, top_speed,
