@@ -46,7 +46,7 @@ _LAYOUT = {
     "block_heaviest": ("bodies", "scalar"),
     # The roots of the islands with rows, the most work first, how many, and the next one for a
     # worker to take; the substep's rows (solver.islands.list_islands,
-    # solver.kernels.end_substep_islands).
+    # solver.kernels.end_substep).
     "island_list": ("bodies", "int"), "island_count": ("one", "int"), "island_next": ("one", "int"),
     "island_rows": ("one", "int"),
     # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].

@@ -22,9 +22,9 @@ vec3 = ti.math.vec3
 BLOCK_SWEEPS = 16
 COUPLED_SWEEPS = 128
 COUPLED_TOL = 1e-12
-# kernels.end_substep_islands shares the islands out among this many loop iterations, each
-# taking the next island until none is left (Taichi 1.7 gives a CPU thread no fewer than 512 of
-# a loop's iterations: fewer would all go to one thread).
+# kernels.end_substep (with islands) shares the islands out among this many loop iterations,
+# each taking the next island until none is left (Taichi 1.7 gives a CPU thread no fewer than
+# 512 of a loop's iterations: fewer would all go to one thread).
 ISLAND_WORKERS = 1024
 # A rigid body touching one at least this many times heavier, in an island of several bodies,
 # is loaded: its rows against static bodies hold the depth they may leave (leaves_depth). At
@@ -306,7 +306,7 @@ def island_work(sim: ti.template(), root: ti.i32) -> ti.i32:
 def list_islands(sim: ti.template()) -> ti.i32:
     """The roots of the islands with rows in island_list, the most work first (insertion
     sort; equal work by root), and the shared counter island_next at 0 (serial). Returns how
-    many: kernels.end_substep_islands shares them out."""
+    many: kernels.end_substep shares them out."""
     count = 0
     for b in range(sim.model.body_count[0]):
         if sim.block_len[b] > 0:

@@ -148,97 +148,71 @@ def copy_prev_positions(sim: ti.template(), vertex_prev_nd: ti.types.ndarray(dty
 
 @ti.kernel
 def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
-                 top_speed: float, depenetration: float, n_pairs: ti.i32,
-                 p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
-                 p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
-                 p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                 c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                 c_hold: ti.types.ndarray(ndim=1),
-                 c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 c_vn0: ti.types.ndarray(ndim=1),
-                 c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                 b_gap: ti.types.ndarray(ndim=1),
-                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                 b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+                top_speed: float, depenetration: float, n_pairs: ti.i32,
+                p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
+                p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
+                p_point: ti.types.ndarray(dtype=vec3, ndim=1),
+                c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
+                c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
+                c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
+                c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
+                c_hold: ti.types.ndarray(ndim=1),
+                c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                c_vn0: ti.types.ndarray(ndim=1),
+                c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
+                b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
+                b_gap: ti.types.ndarray(ndim=1),
+                b_k: ti.types.ndarray(dtype=mat3, ndim=1),
+                b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                islands: ti.template(), serial: ti.template()) -> ti.types.vector(2, ti.i32):
     """The grid's contacts into rows, projection and velocities of one substep (the same
-    sequence as the all-pairs path, solver.substep). Returns (contacts, state check)."""
+    sequence as the all-pairs path, solver.substep), the vertices placed and the state checked,
+    serially. With `islands` (a scene of rigid and static bodies only, every row a block row)
+    the islands are swept side by side: the rows and the islands listed (serial), each island
+    through all its sweeps by one worker (parallel), velocities, carried rows and sleep
+    (serial), the vertices placed (in parallel unless `serial`: runtime.serial_loops), the state
+    checked (serial). An island touches only its own bodies and rows, so the result is the same
+    bits on any number of threads. Returns (rows, state check)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
                                  c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
     n = 0
     status = 0
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        n = substep_from_pairs(sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
-        status = placed_and_checked(sim, centre, bound, top_speed)
-    return ti.Vector([n, status])
-
-
-# The grid path's substep with the islands solved side by side, in a scene of rigid and static
-# bodies only (every row a block row): end_substep's functions in the same order per island,
-# each island taken by one worker through all its sweeps (solver.Solver._step_grid). An island
-# touches only its own bodies and rows, so the result is end_substep's bits on any number of
-# threads. One launch: its serial and parallel parts are tasks of one kernel (three launches
-# cost ~0.7 ms a substep more in the pile's landing, docs/experiments.md).
-
-@ti.kernel
-def end_substep_islands(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float, centre: vec3, bound: float,
-                        top_speed: float, depenetration: float, n_pairs: ti.i32,
-                        p_pair: ti.types.ndarray(dtype=ivec2, ndim=1), p_depth: ti.types.ndarray(ndim=1),
-                        p_normal: ti.types.ndarray(dtype=vec3, ndim=1), p_side: ti.types.ndarray(ndim=1),
-                        p_point: ti.types.ndarray(dtype=vec3, ndim=1),
-                        c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),
-                        c_bary_moved: ti.types.ndarray(dtype=vec3, ndim=1),
-                        c_bary_other: ti.types.ndarray(dtype=vec3, ndim=1),
-                        c_normal: ti.types.ndarray(dtype=vec3, ndim=1), c_budget: ti.types.ndarray(ndim=1),
-                        c_hold: ti.types.ndarray(ndim=1),
-                        c_lambda_n: ti.types.ndarray(ndim=1), c_lambda_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                        c_vn0: ti.types.ndarray(ndim=1),
-                        c_impulse_t: ti.types.ndarray(dtype=vec3, ndim=1),
-                        b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
-                        b_gap: ti.types.ndarray(ndim=1),
-                        b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                        b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                        serial: ti.template()) -> ti.types.vector(2, ti.i32):
-    """end_substep with the islands shared out among threads, in one launch: the rows and the
-    islands listed (serial), each island through all its sweeps by one worker (parallel),
-    velocities, carried rows and sleep (serial), the vertices placed (in parallel unless
-    `serial`: runtime.serial_loops) and the state checked (serial). Returns (rows, state
-    check)."""
-    rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
-    pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        n = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
-        project_begin(sim, rows, n)
-        count = 0
-        if group_blocks(sim, rows, n) > 0:
-            count = list_islands(sim)
-        sim.island_count[0] = count
-        sim.island_rows[0] = n
-    for _ in range(ISLAND_WORKERS):
-        i = next_island(sim, sim.island_count[0])
-        while i >= 0:
-            solve_island(sim, rows, sim.island_list[i], iterations)
+    if ti.static(islands):
+        # One launch: these tasks as three launches cost ~0.7 ms a substep more in the pile's
+        # landing (docs/experiments.md, 2026-11-28 night).
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            n_rows = rows_from_pairs(sim, rows, pairs, n_pairs, depenetration * h)
+            project_begin(sim, rows, n_rows)
+            count = 0
+            if group_blocks(sim, rows, n_rows) > 0:
+                count = list_islands(sim)
+            sim.island_count[0] = count
+            sim.island_rows[0] = n_rows
+        for _ in range(ISLAND_WORKERS):
             i = next_island(sim, sim.island_count[0])
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        finish_rows(sim, rows, sim.island_rows[0], iterations, h, g_norm, depenetration * h)
-    # Each vertex on its own where threads are cheap: on a GPU, one thread placing the pile's
-    # 64k vertices took half of a free-falling substep.
-    ti.loop_config(serialize=serial)
-    for i in range(sim.model.vertex_count[0]):
-        place_vertex(sim, i)
-    status = 0
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        status = state_is_sane(sim, centre, bound, top_speed)
-    return ti.Vector([sim.island_rows[0], status])
+            while i >= 0:
+                solve_island(sim, rows, sim.island_list[i], iterations)
+                i = next_island(sim, sim.island_count[0])
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            finish_rows(sim, rows, sim.island_rows[0], iterations, h, g_norm, depenetration * h)
+        # Each vertex on its own where threads are cheap: on a GPU, one thread placing the
+        # pile's 64k vertices took half of a free-falling substep.
+        ti.loop_config(serialize=serial)
+        for i in range(sim.model.vertex_count[0]):
+            place_vertex(sim, i)
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            n = sim.island_rows[0]
+            status = state_is_sane(sim, centre, bound, top_speed)
+    else:
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            n = substep_from_pairs(sim, rows, pairs, n_pairs, iterations, h, g_norm, depenetration)
+            status = placed_and_checked(sim, centre, bound, top_speed)
+    return ti.Vector([n, status])
 
 @ti.kernel
 def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.ndarray(dtype=ivec3, ndim=1),

@@ -47,7 +47,6 @@ from .kernels import (
     begin_substep,
     copy_prev_positions,
     end_substep,
-    end_substep_islands,
     frames_all_pairs,
     rows_at_state_kernel,
     summarize_kernel,
@@ -340,16 +339,10 @@ class XPBDSolver:
             if wanted > self.contacts.capacity:
                 self.contacts.grow(wanted)
                 self.contact_growths += 1
-            if self.parallel_islands:
-                n, status = (int(v) for v in self.launch(
-                    end_substep_islands, self.sim, int(iterations), float(h), float(g_norm), self.centre_vec,
-                    float(self.bound), float(top_speed), float(self.depenetration_speed), int(pc.count), pc.pair,
-                    pc.depth, pc.normal, pc.side, pc.point, *self.contacts.arrays(), self.serial_vertex_loops))
-            else:
-                n, status = (int(v) for v in end_substep(
-                    self.sim, iterations, h, g_norm, self.centre_vec, self.bound, top_speed,
-                    self.depenetration_speed, pc.count, pc.pair, pc.depth, pc.normal, pc.side, pc.point,
-                    *self.contacts.arrays()))
+            n, status = (int(v) for v in self.launch(
+                end_substep, self.sim, int(iterations), float(h), float(g_norm), self.centre_vec, float(self.bound),
+                float(top_speed), float(self.depenetration_speed), int(pc.count), pc.pair, pc.depth, pc.normal,
+                pc.side, pc.point, *self.contacts.arrays(), self.parallel_islands, self.serial_vertex_loops))
             if timing is not None:
                 timing["projection"] = timing.get("projection", 0.0) + time.perf_counter() - start
             if status != 0:

@@ -1,5 +1,5 @@
 """On the grid path the islands of touching rigid bodies are swept side by side
-(kernels.end_substep_islands): the motion is the same bits as with the islands swept one after
+(kernels.end_substep with islands): the motion is the same bits as with the islands swept one after
 another, on two threads and on one; and the contacts they are swept in come out in one order
 on any number of threads."""
 
