@@ -4,9 +4,7 @@ phases and the carried rows ask this before they make a body's rows."""
 
 import taichi as ti
 
-from ..core.model import STATIC
-
-vec3 = ti.math.vec3
+from ..core.model import STATIC, body_vertex_box
 
 # A sleeping body wakes when a moving body's box comes within this fraction of the larger of the
 # two bodies' reaches (wake_near): a substep or more before they touch, so that it is already
@@ -40,11 +38,7 @@ def wake_if_touched(sim: ti.template(), b_a: ti.i32, b_b: ti.i32):
 @ti.func
 def body_box(sim: ti.template(), b: ti.i32):
     """Body b's vertex box into body_lo/body_hi (wake_near's first part; each body on its own)."""
-    lo = vec3(ti.math.inf)
-    hi = vec3(-ti.math.inf)
-    for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
-        lo = ti.min(lo, sim.state.vertex_x[i])
-        hi = ti.max(hi, sim.state.vertex_x[i])
+    lo, hi = body_vertex_box(sim.model, sim.state, b)
     sim.body_lo[b] = lo
     sim.body_hi[b] = hi
 

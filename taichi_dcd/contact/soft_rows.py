@@ -3,7 +3,7 @@ convex edges under a soft triangle."""
 
 import taichi as ti
 
-from ..core.model import SOFT
+from ..core.model import SOFT, body_vertex_box
 from .cloth import is_cloth
 from .rows import is_duplicate, write_contact
 from .vertex_rows import vertex_over_face
@@ -44,10 +44,7 @@ def solid_boxes(sim: ti.template()):
     a substep testing each of its triangles against every face of a spike it was far from)."""
     for b in range(sim.model.body_count[0]):
         if sim.model.body_kind[b] != SOFT:
-            lo, hi = vec3(ti.math.inf), vec3(-ti.math.inf)
-            for i in range(sim.model.body_vertex_range[b][0], sim.model.body_vertex_range[b][1]):
-                lo = ti.min(lo, sim.state.vertex_x[i])
-                hi = ti.max(hi, sim.state.vertex_x[i])
+            lo, hi = body_vertex_box(sim.model, sim.state, b)
             sim.solid_lo[b] = lo
             sim.solid_hi[b] = hi
 

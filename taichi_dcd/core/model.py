@@ -27,6 +27,17 @@ KIND_NAMES = {"static": STATIC, "rigid": RIGID, "soft": SOFT, "cloth": SOFT}
 DEFORMABLE_KINDS = ("soft", "cloth")
 
 
+@ti.func
+def body_vertex_box(model: ti.template(), state: ti.template(), b: ti.i32):
+    """(lo, hi): the box of body b's vertices in world space now (m)."""
+    lo = ti.math.vec3(ti.math.inf)
+    hi = ti.math.vec3(-ti.math.inf)
+    for i in range(model.body_vertex_range[b][0], model.body_vertex_range[b][1]):
+        lo = ti.min(lo, state.vertex_x[i])
+        hi = ti.max(hi, state.vertex_x[i])
+    return lo, hi
+
+
 @dataclass
 class BodyInfo:
     """Per-body facts kept on the Python side (names, index ranges, mesh faces)."""
