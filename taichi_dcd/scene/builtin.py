@@ -1,6 +1,6 @@
 """The built-in scenes: Erleben's six contact tests (Erleben 2018, "Methodology for
 assessing mesh-based contact point methods"), their variants, a soft drop, two large
-scenes, two of many boxes resting on each other, a soft coil that touches itself and two cloths. Each is a scene file shipped in
+scenes, two of many boxes resting on each other, a pile of 1,000 bodies, a soft coil that touches itself and two cloths. Each is a scene file shipped in
 `scene/files/<name>.toml`, the one source of the scene: `taichi-dcd run spikes` reads the
 same file a user could copy and edit. Its first line, `# <name>: <description>`, is what
 `taichi-dcd list` prints.
@@ -27,12 +27,14 @@ ERLEBEN_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in
 LARGE = ["pile", "spike-in-crack-hires"]
 # Many boxes resting on each other (stack, pyramid): listed and run by name, left out of `all`.
 STACKS = ["stack", "pyramid"]
+# A pile of 1,000 bodies: hours on two cores; listed and run by name, left out of `all`.
+PILES = ["pile-1000"]
 # Soft bodies touching themselves (self_collision): listed and run by name, left out of `all`.
 SELF_TOUCHING = ["soft-coil", "soft-torus-on-spike"]
 # Cloth (an open sheet) draped over a sharp feature: listed and run by name, left out of `all`.
 CLOTH = ["cloth-on-spike", "cloth-on-wedge", "two-cloths-on-box"]
 # Every built-in scene, `all` first.
-KNOWN = [*ALL, *LARGE, *STACKS, *SELF_TOUCHING, *CLOTH]
+KNOWN = [*ALL, *LARGE, *STACKS, *PILES, *SELF_TOUCHING, *CLOTH]
 
 
 def scene_path(name: str) -> Path:
