@@ -26,6 +26,7 @@ import taichi as ti
 from ..core import runtime
 from ..core.geometry import near_in_mesh, vec3, vertex_neighbours
 from ..core.launch import Launcher
+from ..core.scan import block_sums, exclusive_scan
 from .grid_cells import LEVELS, boxes_overlap, bucket_of, cell_of, level_inv_h, level_of
 
 ivec2 = ti.types.vector(2, ti.i32)
@@ -36,7 +37,6 @@ ivec5 = ti.types.vector(5, ti.i32)
 MOVING = 0
 STATIC = 1
 HIDDEN = 2  # a triangle's group when it is in neither table
-SCAN_BLOCK = 4096
 # The narrow phase treats distances within tolerance()·L of zero as touching (L =
 # the pair's longest edge, below twice a box's largest extent), so two triangles
 # whose boxes are that far apart can still be a hit: every box is padded by this
@@ -60,10 +60,11 @@ def _bin_group(
     group_count: ti.types.ndarray(dtype=ti.i32, ndim=2),
     bucket_end: ti.types.ndarray(dtype=ti.i32, ndim=1),
     bucket_bodies: ti.types.ndarray(dtype=ivec2, ndim=1),
-    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
     entry_key: ti.types.ndarray(dtype=ivec5, ndim=1),
     entry_box: ti.types.ndarray(dtype=vec3, ndim=2),
     active: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    tri_slot: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
     group: ti.i32,
     margin: float,
     inv_h0: float,
@@ -72,11 +73,13 @@ def _bin_group(
     """Hash table of one group's triangles, in one launch (kernel launches cost more than a
     small query's work): boxes of the group's bodies (from their vertices) and triangles,
     each triangle's level (-1 for a moving triangle whose box meets no other body's box, on a
-    body without self-collision: it can have no pair), count per bucket with the range of bodies in it, prefix sum
-    (blocked; serial over blocks), scatter. Each entry carries its triangle's body, cell
-    and box, so that scanning a bucket reads contiguous memory. Returns the number of
-    (cell, triangle) entries; if that exceeds the entry capacity nothing is scattered and
-    the caller grows the table and runs again."""
+    body without self-collision: it can have no pair), count per bucket with the range of
+    bodies in it, the binned triangles listed in index order (`active`, through tri_slot:
+    n_tris + 1 entries), prefix sum, scatter. Each entry carries its triangle's body, cell and
+    box, so that scanning a bucket reads contiguous memory; a bucket's entries are in
+    (triangle, cell) order, as a serial scatter writes them, on any number of threads.
+    Returns the number of (cell, triangle) entries; if that exceeds the entry capacity
+    nothing is scattered and the caller grows the table and runs again."""
     n_bodies = body_box.shape[0]
     n_buckets = bucket_bodies.shape[0]
     mask = n_buckets - 1
@@ -113,9 +116,11 @@ def _bin_group(
     for b in range(n_buckets):
         bucket_bodies[b] = ivec2(2147483647, -1)
     entries = 0
+    n_tris = tri.shape[0]
     ti.loop_config(serialize=serial)
-    for t in range(tri.shape[0]):
+    for t in range(n_tris):
         info = tri[t]
+        binned = 0
         if info[4] == group:
             p0, p1, p2 = particle_x[info[0]], particle_x[info[1]], particle_x[info[2]]
             lo = ti.min(p0, p1, p2)
@@ -145,35 +150,24 @@ def _bin_group(
                 span = c1 - c0 + 1
                 entries += span[0] * span[1] * span[2]
                 ti.atomic_add(group_count[group, level], 1)
-                slot = ti.atomic_add(group_count[group, LEVELS], 1)
-                active[slot] = t
+                binned = 1
                 tri_box[t, 0] = lo
                 tri_box[t, 1] = hi
             tri_level[t] = level
+        tri_slot[t] = binned
+    n_binned = exclusive_scan(tri_slot, 0, n_tris, block_sum, serial)
+    tri_slot[n_tris] = n_binned
+    group_count[group, LEVELS] = n_binned
+    ti.loop_config(serialize=serial)
+    for t in range(n_tris):
+        if tri_slot[t + 1] > tri_slot[t]:
+            active[tri_slot[t]] = t
     group_count[group, LEVELS + 1] = entries
     fits = entries <= capacity
-    # Bucket b's count is at b + 1. An exclusive scan puts its start there (within
-    # blocks in parallel, then over block totals serially); the scatter then advances
-    # it to the bucket's end, so that bucket b's entries are [end[b], end[b + 1]).
-    n_blocks = block_sum.shape[0] if fits else 0
-    ti.loop_config(serialize=serial)
-    for k in range(n_blocks):
-        running = 0
-        for b in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_buckets)):
-            count = bucket_end[b + 1]
-            bucket_end[b + 1] = running
-            running += count
-        block_sum[k] = running
-    total = 0
-    ti.loop_config(serialize=True)
-    for k in range(n_blocks):
-        block_total = block_sum[k]
-        block_sum[k] = total
-        total += block_total
-    ti.loop_config(serialize=serial)
-    for b in range(n_buckets if fits else 0):
-        bucket_end[b + 1] += block_sum[b // SCAN_BLOCK]
-    n_scatter = group_count[group, LEVELS] if fits else 0
+    # Bucket b's count is at b + 1. An exclusive scan puts its start there; the scatter then
+    # advances it to the bucket's end, so that bucket b's entries are [end[b], end[b + 1]).
+    exclusive_scan(bucket_end, 1, n_buckets if fits else 0, block_sum, serial)
+    n_scatter = n_binned if fits else 0
     ti.loop_config(serialize=serial)
     for s in range(n_scatter):
         t = active[s]
@@ -190,7 +184,45 @@ def _bin_group(
                     entry_key[slot] = ivec5(t, body, x, y, z)
                     entry_box[slot, 0] = lo
                     entry_box[slot, 1] = hi
+    if ti.static(not serial):
+        # Threads scatter into a bucket in the order they reach it: put it back in order.
+        for b in range(n_buckets if fits else 0):
+            sort_bucket(entry_key, entry_box, bucket_end[b], bucket_end[b + 1])
     return entries
+
+
+@ti.func
+def entry_before(a: ivec5, b: ivec5) -> bool:
+    """Whether entry a comes before entry b in a bucket: by triangle, then cell (x, y, z)."""
+    before = False
+    decided = False
+    for i in ti.static((0, 2, 3, 4)):
+        if not decided and a[i] != b[i]:
+            before = a[i] < b[i]
+            decided = True
+    return before
+
+
+@ti.func
+def sort_bucket(entry_key: ti.template(), entry_box: ti.template(), first: ti.i32, end: ti.i32):
+    """Insertion sort of the entries [first, end) (a bucket holds a few) by entry_before."""
+    for i in range(first + 1, end):
+        key = entry_key[i]
+        lo, hi = entry_box[i, 0], entry_box[i, 1]
+        j = i
+        shifting = True
+        while shifting:
+            shifting = False
+            if j > first:
+                if entry_before(key, entry_key[j - 1]):
+                    entry_key[j] = entry_key[j - 1]
+                    entry_box[j, 0] = entry_box[j - 1, 0]
+                    entry_box[j, 1] = entry_box[j - 1, 1]
+                    j -= 1
+                    shifting = True
+        entry_key[j] = key
+        entry_box[j, 0] = lo
+        entry_box[j, 1] = hi
 
 
 @ti.func
@@ -201,12 +233,17 @@ def owns_pair(lo_t: vec3, lo_u: vec3, c: ivec3, inv_h: float) -> bool:
 
 
 @ti.func
-def report_pair(t: ti.i32, body_t: ti.i32, u: ti.i32, body_u: ti.i32, pairs: ti.template(),
-                group_count: ti.template()):
-    """Append (t, u), body order first."""
+def report_pair(t: ti.i32, body_t: ti.i32, u: ti.i32, body_u: ti.i32, out: ti.template(), q: ti.i32,
+                found: ti.i32):
+    """Append (t, u), body order first, the `found`-th pair of query q. out: (pairs, pair_query,
+    group_count, serial), made with ti.static; in parallel (not serial) each pair also notes
+    (q, found), from which _find_pairs puts it in the queries' order."""
+    pairs, pair_query, group_count = ti.static(out[0], out[1], out[2])
     k = ti.atomic_add(group_count[0, LEVELS + 2], 1)
     if k < pairs.shape[0]:
         pairs[k] = ivec2(t, u) if body_t < body_u else ivec2(u, t)
+        if ti.static(not out[3]):
+            pair_query[k] = ivec2(q, found)
 
 
 @ti.func
@@ -223,13 +260,15 @@ def pairable(bodies: ti.template(), t: ti.i32, body_t: ti.i32, u: ti.i32, body_u
 
 @ti.func
 def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i32, c: ivec3, inv_h: float,
-                 first: ti.i32, end: ti.i32, entries: ti.template(), pairs: ti.template(),
-                 group_count: ti.template(), bodies: ti.template()):
+                 first: ti.i32, end: ti.i32, entries: ti.template(), out: ti.template(), q: ti.i32, found: ti.i32,
+                 bodies: ti.template()) -> ti.i32:
     """Report t against the entries [first, end) of a bucket that are binned in cell c at
-    `level`, may pair with t (pairable) and have an overlapping box. entries: (tri_level,
-    entry_key, entry_box), the levels and one table's entries; bodies: (tri, body_self,
-    nbr_range, nbr); both tuples made with ti.static."""
+    `level`, may pair with t (pairable) and have an overlapping box, as query q's pairs from
+    its `found`-th on (report_pair's out); returns the query's pairs found so far. entries:
+    (tri_level, entry_key, entry_box), the levels and one table's entries; bodies: (tri,
+    body_self, nbr_range, nbr); all tuples made with ti.static."""
     tri_level, entry_key, entry_box = ti.static(entries[0], entries[1], entries[2])
+    n = found
     for f in range(first, end):
         key = entry_key[f]
         if (key[2] == c[0] and key[3] == c[1] and key[4] == c[2]
@@ -239,18 +278,22 @@ def scan_entries(t: ti.i32, body_t: ti.i32, lo_t: vec3, hi_t: vec3, level: ti.i3
             # one), then the neighbour test; nested, as Taichi's `and` evaluates both sides.
             if tri_level[u] == level and owns_pair(lo_t, entry_box[f, 0], c, inv_h):
                 if pairable(bodies, t, body_t, u, key[1]):
-                    report_pair(t, body_t, u, key[1], pairs, group_count)
+                    report_pair(t, body_t, u, key[1], out, q, n)
+                    n += 1
+    return n
 
 
 @ti.func
 def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti.i32, inv_h0: float,
                   tri_level: ti.template(), tri_box: ti.template(), group_count: ti.template(),
                   bucket_end: ti.template(), entry_key: ti.template(), entry_box: ti.template(),
-                  pairs: ti.template(), bodies: ti.template()):
+                  out: ti.template(), q: ti.i32, found: ti.i32, bodies: ti.template()) -> ti.i32:
     """Report t's partners binned in one table (MOVING or STATIC) at levels above t's own,
-    looked up in the (at most 2 per axis) cells t's box covers at each such level."""
+    looked up in the (at most 2 per axis) cells t's box covers at each such level, as query
+    q's pairs from its `found`-th on (scan_entries); returns the query's pairs found so far."""
     mask = bucket_end.shape[0] - 2
     lo_t, hi_t = tri_box[t, 0], tri_box[t, 1]
+    n = found
     for level in range(tri_level[t] + 1, top_level + 1):
         if group_count[table, level] > 0:
             inv_h = level_inv_h(inv_h0, level)
@@ -261,8 +304,9 @@ def query_coarser(t: ti.i32, body_t: ti.i32, table: ti.template(), top_level: ti
                     for z in range(c0[2], c1[2] + 1):
                         c = ivec3(x, y, z)
                         b = bucket_of(level, c, mask)
-                        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
-                                     ti.static((tri_level, entry_key, entry_box)), pairs, group_count, bodies)
+                        n = scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, bucket_end[b], bucket_end[b + 1],
+                                         ti.static((tri_level, entry_key, entry_box)), out, q, n, bodies)
+    return n
 
 
 @ti.kernel
@@ -284,13 +328,22 @@ def _find_pairs(
     static_box: ti.types.ndarray(dtype=vec3, ndim=2),
     static_active: ti.types.ndarray(dtype=ti.i32, ndim=1),
     pairs: ti.types.ndarray(dtype=ivec2, ndim=1),
+    pairs_found: ti.types.ndarray(dtype=ivec2, ndim=1),
+    pair_query: ti.types.ndarray(dtype=ivec2, ndim=1),
+    query_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
     inv_h0: float,
     serial: ti.template(),
 ) -> ti.i32:
     """Candidate pairs (box overlap, different bodies or one with self-collision not near
     neighbours, not both static); returns their number,
-    which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored)."""
+    which exceeds pairs.shape[0] when the buffer overflowed (then only the first ones are stored).
+    The queries (each moving entry, then each triangle that looks up coarser levels) report
+    their pairs in query order, on any number of threads: in parallel they land in
+    pairs_found (with pair_query, as large as pairs) as the threads finish, each query's
+    count in query_count (one per query), and are then moved to their place in `pairs`."""
     mesh = ti.static((tri, body_self, nbr_range, nbr))
+    out = ti.static((pairs if serial else pairs_found, pair_query, group_count, serial))
     group_count[0, LEVELS + 2] = 0
     top_moving = -1
     top_static = -1
@@ -310,8 +363,9 @@ def _find_pairs(
     # the static entries of its cell, so each pair meets once, in one shared cell.
     moving_mask = moving_bodies.shape[0] - 1
     static_mask = static_end.shape[0] - 2
+    n_entries = group_count[MOVING, LEVELS + 1]
     ti.loop_config(serialize=serial)
-    for e in range(group_count[MOVING, LEVELS + 1]):
+    for e in range(n_entries):
         key = moving_key[e]
         t = key[0]
         body_t = key[1]
@@ -324,29 +378,41 @@ def _find_pairs(
         # collides with itself).
         bodies = moving_bodies[b]
         end = moving_end[b + 1] if bodies[0] != bodies[1] or body_self[bodies[0]] != 0 else 0
-        scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
-                     ti.static((tri_level, moving_key, moving_box)), pairs, group_count, mesh)
+        found = scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, e + 1, end,
+                             ti.static((tri_level, moving_key, moving_box)), out, e, 0, mesh)
         if level <= top_static:
             b = bucket_of(level, c, static_mask)
-            scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
-                         ti.static((tri_level, static_key, static_box)), pairs, group_count,
-                         mesh)
+            found = scan_entries(t, body_t, lo_t, hi_t, level, c, inv_h, static_end[b], static_end[b + 1],
+                                 ti.static((tri_level, static_key, static_box)), out, e, found, mesh)
+        if ti.static(not serial):
+            query_count[e] = found
     # Unequal levels: the finer triangle looks up the coarser one (static triangles
     # only look up moving ones).
     ti.loop_config(serialize=serial)
     for s in range(n_coarser_queries):
+        q = n_entries + s
+        found = 0
         if s < n_moving:
             t = moving_active[s]
             body_t = tri[t][3]
-            query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, mesh)
-            query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
-                          static_end, static_key, static_box, pairs, mesh)
+            found = query_coarser(t, body_t, MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
+                                  moving_end, moving_key, moving_box, out, q, found, mesh)
+            found = query_coarser(t, body_t, STATIC, top_static, inv_h0, tri_level, tri_box, group_count,
+                                  static_end, static_key, static_box, out, q, found, mesh)
         else:
             t = static_active[s - n_moving]
-            query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
-                          moving_end, moving_key, moving_box, pairs, mesh)
-    return group_count[0, LEVELS + 2]
+            found = query_coarser(t, tri[t][3], MOVING, top_moving, inv_h0, tri_level, tri_box, group_count,
+                                  moving_end, moving_key, moving_box, out, q, found, mesh)
+        if ti.static(not serial):
+            query_count[q] = found
+    n_pairs = group_count[0, LEVELS + 2]
+    if ti.static(not serial):
+        # Each query's pairs to its offset in the queries' order (nothing moved on overflow).
+        exclusive_scan(query_count, 0, n_entries + n_coarser_queries, block_sum, False)
+        for k in range(n_pairs if n_pairs <= pairs.shape[0] else 0):
+            which = pair_query[k]
+            pairs[query_count[which[0]] + which[1]] = pairs_found[k]
+    return n_pairs
 
 
 @ti.kernel
@@ -398,7 +464,6 @@ class _HashTable:
         self.bucket_end = ti.ndarray(ti.i32, shape=n_buckets + 1)
         self.bucket_end.fill(0)
         self.bucket_bodies = ti.ndarray(ivec2, shape=n_buckets)
-        self.block_sum = ti.ndarray(ti.i32, shape=(n_buckets + SCAN_BLOCK - 1) // SCAN_BLOCK)
         self.entry_key = ti.ndarray(ivec5, shape=max(capacity, 1))
         self.entry_box = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=(max(capacity, 1), 2))
         self.capacity = capacity
@@ -408,7 +473,7 @@ class _HashTable:
         self._allocate(max(entries + entries // 4, 2 * self.capacity))
 
     def arrays(self) -> tuple:
-        return self.bucket_end, self.bucket_bodies, self.block_sum, self.entry_key, self.entry_box, self.active
+        return self.bucket_end, self.bucket_bodies, self.entry_key, self.entry_box, self.active
 
 
 class UniformGrid:
@@ -426,15 +491,14 @@ class UniformGrid:
     (0: bin at every query, the exact pairs). tri_hidden (m,) bool: static triangles
     never binned, so in no pair (faces hidden against another static body, contact/hidden_faces.py).
     body_self (n_bodies,) bool: bodies whose own triangles pair too (those not near neighbours:
-    core.geometry.near_in_mesh). ordered: the pairs come out in the same order on any number of
-    CPU threads (the loops run serially on the CPU; runtime.serial_loops).
+    core.geometry.near_in_mesh). The pairs come out in one order on any number of threads and
+    on a GPU.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, skin: float = 0.0, tri_hidden=None,
-                 body_self=None, ordered: bool = False):
+                 body_self=None):
         runtime.ensure_init()
-        self.ordered = bool(ordered)
         tri_indices = np.ascontiguousarray(tri_indices, dtype=np.int32).reshape(-1, 3)
         m = len(tri_indices)
         tri_body = np.ascontiguousarray(tri_body, dtype=np.int32)
@@ -504,7 +568,11 @@ class UniformGrid:
         self.group_count = ti.ndarray(ti.i32, shape=(2, LEVELS + 3))
         self.group_count.fill(0)
         self.tables = (_HashTable(m), _HashTable(m))
-        self.pairs = ti.ndarray(ivec2, shape=pair_capacity)
+        # Scratch of the loops that run in parallel and keep their output in one order.
+        self.tri_slot = ti.ndarray(ti.i32, shape=size + 1)
+        self.block_sum = block_sums()
+        self.query_count = ti.ndarray(ti.i32, shape=1)
+        self._allocate_pairs(pair_capacity)
         self.n_pairs = 0
         self._static_binned = False
         self._launch = Launcher()
@@ -514,6 +582,12 @@ class UniformGrid:
     @property
     def pair_capacity(self) -> int:
         return self.pairs.shape[0]
+
+    def _allocate_pairs(self, capacity: int) -> None:
+        self.pairs = ti.ndarray(ivec2, shape=capacity)
+        # Where a parallel query's pairs land first, and the query and rank of each.
+        self.pairs_found = ti.ndarray(ivec2, shape=capacity)
+        self.pair_query = ti.ndarray(ivec2, shape=capacity)
 
     def entries(self, group: int) -> int:
         """(cell, triangle) entries of the last binning of `group` (MOVING or STATIC)."""
@@ -536,9 +610,8 @@ class UniformGrid:
         while True:
             entries = self._launch(_bin_group, particle_x, self.particle_body, self.tri, self.tri_level, self.tri_box,
                                    self.body_group, self.body_self, self.body_box, self.group_count,
-                                   *table.arrays(),
-                                   group, pad, 1.0 / self.cell_size,
-                                   runtime.serial_loops(self.n_tris, self.ordered))
+                                   *table.arrays(), self.tri_slot, self.block_sum,
+                                   group, pad, 1.0 / self.cell_size, runtime.serial_loops(self.n_tris))
             if entries <= table.capacity:
                 break
             table.grow(entries)
@@ -575,16 +648,20 @@ class UniformGrid:
                 self.particle_built.copy_from(particle_x)
                 self._moving_binned = True
         moving, static = self.tables
-        serial = runtime.serial_loops(moving.entries, self.ordered)
+        serial = runtime.serial_loops(moving.entries)
+        # One count per query: each moving entry, each triangle looking up coarser levels.
+        if not serial and self.query_count.shape[0] < moving.entries + self.n_tris:
+            self.query_count = ti.ndarray(ti.i32, shape=moving.capacity + self.n_tris + 1)
         while True:
             n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level,
                              self.tri_box, self.group_count, moving.bucket_end, moving.bucket_bodies,
                              moving.entry_key, moving.entry_box, moving.active, static.bucket_end,
                              static.entry_key, static.entry_box, static.active,
-                             self.pairs, 1.0 / self.cell_size, serial)
+                             self.pairs, self.pairs_found, self.pair_query, self.query_count, self.block_sum,
+                             1.0 / self.cell_size, serial)
             if n <= self.pair_capacity:
                 break
-            self.pairs = ti.ndarray(ivec2, shape=max(n, 2 * self.pair_capacity))
+            self._allocate_pairs(max(n, 2 * self.pair_capacity))
         self.n_pairs = n
         return n
 

@@ -96,15 +96,22 @@ class PairResults(NamedTuple):
 
 
 @ti.func
-def append_contact(rows: ti.template(), counter: ti.template(), counter_slot: ti.template(), ab, depth, normal, side,
-                   point):
-    """Append one row to a contact buffer's arrays, rows = ti.static((pair, depth, normal,
-    side, point)), at the slot counter[counter_slot] hands out (atomically); past the
-    capacity the row is counted but not written (the caller grows the buffer and runs again)."""
-    slot = ti.atomic_add(counter[counter_slot], 1)
+def write_contact(rows: ti.template(), slot: ti.i32, ab, depth, normal, side, point):
+    """Write one row of a contact buffer's arrays, rows = ti.static((pair, depth, normal, side,
+    point)), at `slot`; past the capacity nothing is written (the caller grows the buffer and
+    runs again)."""
     if slot < rows[1].shape[0]:
         rows[0][slot] = ab
         rows[1][slot] = depth
         rows[2][slot] = normal
         rows[3][slot] = ti.cast(side, ti.i8)
         rows[4][slot] = point
+
+
+@ti.func
+def append_contact(rows: ti.template(), counter: ti.template(), counter_slot: ti.template(), ab, depth, normal, side,
+                   point):
+    """Append one row to a contact buffer's arrays (as write_contact) at the slot
+    counter[counter_slot] hands out (atomically); past the capacity the row is counted but not
+    written."""
+    write_contact(rows, ti.atomic_add(counter[counter_slot], 1), ab, depth, normal, side, point)

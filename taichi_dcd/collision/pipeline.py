@@ -12,11 +12,47 @@ import taichi as ti
 
 from ..core import runtime
 from .broadphase import UniformGrid, ivec2, ivec5
-from .contacts import Contacts, append_contact
+from .contacts import Contacts, append_contact, write_contact
 from ..core.geometry import vec3
 from ..core.launch import Launcher
+from ..core.scan import block_sums, exclusive_scan
 from .narrowphase import collide_triangle_pair, pressed_through, touching_planes
 from .two_sided import faced_pair, moved_together
+
+
+@ti.func
+def test_candidate(k: ti.i32, particle_x: ti.template(), tri: ti.template(), pairs: ti.template(),
+                   tri_sheet_gap: ti.template(), tri_self_gap: ti.template(), particle_x_prev: ti.template(),
+                   keep_touching: ti.template(), keep_pressed: ti.template(), two_sided: ti.template(),
+                   self_gaps: ti.template()):
+    """The unified DCD test (Eq. 6 and its gradient) on candidate pair k: whether it is kept
+    (see _collide_candidates), then the pair and its row (depth, normal, side, point)."""
+    ab = pairs[k]
+    ia, ib = tri[ab[0]], tri[ab[1]]  # vertex indices first
+    a0, a1, a2 = particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]]
+    b0, b1, b2 = particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]]
+    if ti.static(two_sided):
+        cloth_a, cloth_b = tri_sheet_gap[ab[0]] > 0.0, tri_sheet_gap[ab[1]] > 0.0
+        if cloth_a or cloth_b:
+            a0, a1, a2, b0, b1, b2 = faced_pair(
+                a0, a1, a2, b0, b1, b2,
+                particle_x_prev[ia[0]], particle_x_prev[ia[1]], particle_x_prev[ia[2]],
+                particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b,
+                0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
+    if ti.static(self_gaps):
+        if ia[3] == ib[3] and tri_self_gap[ab[0]] > 0.0:
+            a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, tri_self_gap[ab[0]])
+    hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
+    keep = hit
+    if ti.static(keep_touching):
+        if not hit:
+            which, _, _, _ = touching_planes(a0, a1, a2, b0, b1, b2)
+            keep = which >= 0
+    if ti.static(keep_pressed):
+        if not keep:
+            a_behind, b_behind, _, _, _ = pressed_through(a0, a1, a2, b0, b1, b2)
+            keep = a_behind or b_behind
+    return keep, ab, depth, normal, side, point
 
 
 @ti.kernel
@@ -34,6 +70,8 @@ def _collide_candidates(
     tri_sheet_gap: ti.types.ndarray(ndim=1),
     tri_self_gap: ti.types.ndarray(ndim=1),
     particle_x_prev: ti.types.ndarray(dtype=vec3, ndim=1),
+    pair_slot: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    block_sum: ti.types.ndarray(dtype=ti.i32, ndim=1),
     serial: ti.template(),
     keep_touching: ti.template(),
     keep_pressed: ti.template(),
@@ -42,43 +80,35 @@ def _collide_candidates(
 ) -> ti.i32:
     """Unified DCD test (Eq. 6 and its gradient) on each candidate pair; appends the
     intersecting ones (and with keep_touching those it calls touching, with keep_pressed
-    those pressed through each other, with side -1) and returns how many there are (more
-    than the capacity on overflow). With two_sided, a triangle with a gap in tri_sheet_gap
+    those pressed through each other, with side -1) in the pairs' order, and returns how many
+    there are (more than the capacity on overflow). With two_sided, a triangle with a gap in tri_sheet_gap
     (m, 0 for one-sided ones) faces the other one of its pair first, and two such triangles are
     moved together by the mean of their gaps (two_sided.faced_pair; particle_x_prev: the
     positions at the substep's start). With self_gaps, two triangles of one body with a gap in
-    tri_self_gap (m) are moved together by it (a closed soft body's walls keep it)."""
+    tri_self_gap (m) are moved together by it (a closed soft body's walls keep it).
+    In parallel (not `serial`) each pair's verdict goes to pair_slot (n_pairs + 1 entries),
+    is scanned into the rows' slots, and the kept pairs are tested again and written there."""
+    rows = ti.static((contact_pair, contact_depth, contact_normal, contact_side, contact_point))
+    test_args = ti.static((particle_x, tri, pairs, tri_sheet_gap, tri_self_gap, particle_x_prev, keep_touching,
+                           keep_pressed, two_sided, self_gaps))
     contact_count[0] = 0
-    ti.loop_config(serialize=serial)
-    for k in range(n_pairs):
-        ab = pairs[k]
-        ia, ib = tri[ab[0]], tri[ab[1]]  # vertex indices first
-        a0, a1, a2 = particle_x[ia[0]], particle_x[ia[1]], particle_x[ia[2]]
-        b0, b1, b2 = particle_x[ib[0]], particle_x[ib[1]], particle_x[ib[2]]
-        if ti.static(two_sided):
-            cloth_a, cloth_b = tri_sheet_gap[ab[0]] > 0.0, tri_sheet_gap[ab[1]] > 0.0
-            if cloth_a or cloth_b:
-                a0, a1, a2, b0, b1, b2 = faced_pair(
-                    a0, a1, a2, b0, b1, b2,
-                    particle_x_prev[ia[0]], particle_x_prev[ia[1]], particle_x_prev[ia[2]],
-                    particle_x_prev[ib[0]], particle_x_prev[ib[1]], particle_x_prev[ib[2]], cloth_a, cloth_b,
-                    0.5 * (tri_sheet_gap[ab[0]] + tri_sheet_gap[ab[1]]))
-        if ti.static(self_gaps):
-            if ia[3] == ib[3] and tri_self_gap[ab[0]] > 0.0:
-                a0, a1, a2, b0, b1, b2 = moved_together(a0, a1, a2, b0, b1, b2, tri_self_gap[ab[0]])
-        hit, depth, normal, side, point = collide_triangle_pair(a0, a1, a2, b0, b1, b2)
-        keep = hit
-        if ti.static(keep_touching):
-            if not hit:
-                which, _, _, _ = touching_planes(a0, a1, a2, b0, b1, b2)
-                keep = which >= 0
-        if ti.static(keep_pressed):
-            if not keep:
-                a_behind, b_behind, _, _, _ = pressed_through(a0, a1, a2, b0, b1, b2)
-                keep = a_behind or b_behind
-        if keep:
-            append_contact(ti.static((contact_pair, contact_depth, contact_normal, contact_side, contact_point)),
-                           contact_count, 0, ab, depth, normal, side, point)
+    if ti.static(serial):
+        ti.loop_config(serialize=True)
+        for k in range(n_pairs):
+            keep, ab, depth, normal, side, point = test_candidate(k, *test_args)
+            if keep:
+                append_contact(rows, contact_count, 0, ab, depth, normal, side, point)
+    else:
+        for k in range(n_pairs):
+            # Only the verdict is kept (distinct names: Taichi types each on first assignment).
+            keep, _ab, _depth, _normal, _side, _point = test_candidate(k, *test_args)
+            pair_slot[k] = 1 if keep else 0
+        contact_count[0] = exclusive_scan(pair_slot, 0, n_pairs, block_sum, False)
+        pair_slot[n_pairs] = contact_count[0]
+        for k in range(n_pairs):
+            if pair_slot[k + 1] > pair_slot[k]:
+                _keep, ab, depth, normal, side, point = test_candidate(k, *test_args)
+                write_contact(rows, pair_slot[k], ab, depth, normal, side, point)
     return contact_count[0]
 
 
@@ -100,15 +130,15 @@ class CollisionPipeline:
     (collision.two_sided), and `run` then needs the positions at the substep's start too.
     tri_self_gap (m,) float: the gap (m) two triangles of the same body keep from each other
     (a closed soft body's walls), 0 for none; such a pair is tested moved together by it.
-    ordered: the contacts come out in the same order on any number of CPU threads (as a
-    solver needs: their order is its sweeps' order), the loops running serially on the CPU.
+    The contacts come out in the candidate pairs' order, on any number of threads and on a GPU
+    (a solver needs that: their order is its sweeps' order).
     Buffers start at the given capacities and grow whenever a query overflows them.
     """
 
     def __init__(self, tri_indices, tri_body, tri_static=None, cell_size: float | None = None,
                  margin: float = 0.0, pair_capacity: int = 1024, contact_capacity: int = 1024,
                  skin: float = 0.0, keep_touching: bool = False, keep_pressed: bool = False, tri_hidden=None,
-                 body_self=None, tri_sheet_gap=None, tri_self_gap=None, ordered: bool = False):
+                 body_self=None, tri_sheet_gap=None, tri_self_gap=None):
         self.self_gaps = tri_self_gap is not None and bool(np.any(np.asarray(tri_self_gap) > 0.0))
         self.tri_self_gap = ti.ndarray(runtime.real_type(), shape=max(len(tri_indices), 1) if self.self_gaps else 1)
         if self.self_gaps:
@@ -120,9 +150,11 @@ class CollisionPipeline:
         self.keep_touching = bool(keep_touching)
         self.keep_pressed = bool(keep_pressed)
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
-                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self,
-                                ordered=ordered)
+                                pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self)
         self.contacts = Contacts(contact_capacity)
+        # Each candidate's verdict, then its row's slot (parallel narrow phase).
+        self.pair_slot = ti.ndarray(ti.i32, shape=self.grid.pair_capacity + 1)
+        self.block_sum = block_sums()
         self._launch = Launcher()
 
     def run(self, particle_x, phase_seconds: dict | None = None, particle_x_prev=None) -> int:
@@ -139,13 +171,14 @@ class CollisionPipeline:
             middle = time.perf_counter()
             phase_seconds["broad"] = phase_seconds.get("broad", 0.0) + middle - start
         c = self.contacts
+        if self.pair_slot.shape[0] < n_pairs + 1:
+            self.pair_slot = ti.ndarray(ti.i32, shape=self.grid.pair_capacity + 1)
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
-                                    c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
-                                    self.tri_self_gap,
-                                    particle_x if particle_x_prev is None else particle_x_prev,
-                                    runtime.serial_loops(n_pairs, self.grid.ordered), self.keep_touching,
-                                    self.keep_pressed, self.two_sided, self.self_gaps)
+                             c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
+                             self.tri_self_gap, particle_x if particle_x_prev is None else particle_x_prev,
+                             self.pair_slot, self.block_sum, runtime.serial_loops(n_pairs), self.keep_touching,
+                             self.keep_pressed, self.two_sided, self.self_gaps)
             if n <= c.capacity:
                 break
             c.grow(n)

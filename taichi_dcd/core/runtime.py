@@ -205,15 +205,14 @@ def settings() -> dict:
 PARALLEL_MIN_WORK = 200_000
 
 
-def serial_loops(work: int, ordered: bool = False) -> bool:
+def serial_loops(work: int) -> bool:
     """Whether a kernel whose loops do about `work` iterations should run them serially:
-    always on one CPU thread, below PARALLEL_MIN_WORK on CPU, never on a GPU. ordered: the
-    order of what the loops append must not depend on the threads (a solver's contacts set
-    the order of its Gauss-Seidel sweeps): serial on the CPU at any size."""
+    always on one CPU thread, below PARALLEL_MIN_WORK on CPU, never on a GPU. Loops that append
+    (the broad and narrow phases) give the same order either way (core.scan)."""
     ensure_init()
     if _settings["arch"] != "cpu":
         return False
-    return ordered or _settings["cpu_threads"] == 1 or work < PARALLEL_MIN_WORK
+    return _settings["cpu_threads"] == 1 or work < PARALLEL_MIN_WORK
 
 
 def precision() -> str:

@@ -159,8 +159,7 @@ class XPBDSolver:
                                               keep_touching=True, keep_pressed=m.has_soft,
                                               tri_hidden=m.tri_hidden_np, body_self=body_self,
                                               tri_sheet_gap=sheet_gaps(m) if m.has_cloth else None,
-                                              tri_self_gap=self_gaps(m) if m.has_self_gap else None,
-                                              ordered=True)
+                                              tri_self_gap=self_gaps(m) if m.has_self_gap else None)
             self.vertex_nd = ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))
             # A cloth's triangles face each other as they were at the substep's start.
             self.vertex_prev_nd = (ti.ndarray(ti.types.vector(3, runtime.real_type()), shape=max(m.n_vertices, 1))

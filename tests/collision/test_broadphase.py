@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 import taichi as ti
 
+import taichi_dcd
+
 from taichi_dcd.collision.broadphase import BOX_SLACK, UniformGrid
 from taichi_dcd.core.runtime import tolerance
 
@@ -213,3 +215,41 @@ def test_self_colliding_bodies_add_their_own_pairs_but_near_neighbours(f64, seed
     got = {tuple(sorted(p)) for p in grid_pairs(grid, x)}
     assert own > 20 and near > 20
     assert got == expected, f"missing {sorted(expected - got)[:5]}, extra {sorted(got - expected)[:5]}"
+
+
+def pairs_and_contacts(x, faces, body, static):
+    """The candidate pairs and contacts of one query, in the order they come out."""
+    from taichi_dcd.collision.pipeline import CollisionPipeline
+
+    pipeline = CollisionPipeline(faces, body, static, keep_touching=True, pair_capacity=8)
+    px = ti.ndarray(ti.types.vector(3, ti.f64), shape=len(x))
+    px.from_numpy(x)
+    pipeline.run(px)
+    return pipeline.grid.pairs_numpy(), pipeline.contacts.to_numpy()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_pairs_and_contacts_come_out_in_the_serial_order_on_two_threads(monkeypatch, seed):
+    """Loops shared among threads (as above 200,000 iterations) append as the threads finish;
+    the pairs and contacts must still come out in the one order a single thread gives, since a
+    solver sweeps its rows in that order. Bodies of triangles of mixed sizes (several grid
+    levels, so both kinds of query), one body static."""
+    from taichi_dcd.core import runtime
+
+    rng = np.random.default_rng(100 + seed)
+    x, faces, body = soup(rng, n_bodies=12, tris_per_body=150, spread=1.0, size=0.3)
+    big = rng.random(len(faces)) < 0.05
+    x[faces[big]] *= 3.0  # a few triangles several levels up
+    static = body == 0
+    taichi_dcd.init(arch="cpu", precision="f64", debug=True, cpu_threads=1)
+    pairs, contacts = pairs_and_contacts(x, faces, body, static)
+    assert len(pairs) > 1000 and len(contacts) > 100
+    assert set(map(tuple, pairs.tolist())) == brute_pairs(x, faces, body, static)
+    monkeypatch.setattr(runtime, "PARALLEL_MIN_WORK", 0)
+    taichi_dcd.init(arch="cpu", precision="f64", debug=True, cpu_threads=2)
+    for _ in range(2):
+        shared_pairs, shared = pairs_and_contacts(x, faces, body, static)
+        np.testing.assert_array_equal(shared_pairs, pairs)
+        np.testing.assert_array_equal(shared.pair, contacts.pair)
+        np.testing.assert_array_equal(shared.depth, contacts.depth)
+        np.testing.assert_array_equal(shared.normal, contacts.normal)
