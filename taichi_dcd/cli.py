@@ -468,6 +468,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return _dispatch(parser, args)
+    except BrokenPipeError:
+        # The reader went away (`taichi-dcd list | head -1`): nothing left to say to it, and
+        # Python's own flush at exit must not fail on the closed pipe either.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except Exception as exc:  # noqa: BLE001 — a command line tool answers in one line, not a traceback
         if os.environ.get("TAICHI_DCD_TRACEBACK"):
             raise

@@ -11,9 +11,11 @@ pass took more than half of it on the solver's frame kernel (Taichi 1.7):
 - and, when a module of kernels is imported, the line above each decorated function, for
   which Python searches every loaded module for the function's file.
 
-`speed_up()` memoises them. Each memo returns the very string or lines the original returns
-for the same inputs (the key holds every input the original reads), so compiled kernels,
-their cache keys and error messages are unchanged. It patches nothing it does not recognise.
+`speed_up()` memoises them; the subpackages that hold kernels run it when they are
+imported, before their kernels and functions are decorated. Each memo returns the very string
+or lines the original returns for the same inputs (the key holds every input the original
+reads), so compiled kernels, their cache keys and error messages are unchanged. It patches
+nothing it does not recognise.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import functools
 import os
 import inspect
 import linecache
+import sys
 import textwrap
 
 _patched = False
@@ -29,6 +32,7 @@ _patched = False
 PLAIN_ENV = "TAICHI_DCD_PLAIN_FRONTEND"
 # The helpers replaced, for tests that compare against them.
 _originals: dict = {}
+_INSPECT_FRAMEINFO = inspect.getframeinfo
 
 # Node types whose multi-line position excerpt stops before their body (Taichi's rule).
 _HEADED = ("For", "While", "FunctionDef", "If")
@@ -47,6 +51,11 @@ def speed_up() -> bool:
         return True
     if left_plain():
         return False
+    # Taichi decorates its own library's functions as it is imported: inspect's own
+    # getframeinfo is the memo's for that while (and only then).
+    importing_taichi = "taichi" not in sys.modules
+    if importing_taichi:
+        inspect.getframeinfo = _frameinfo_from_linecache
     try:
         from taichi.lang import kernel_impl
         from taichi.lang.ast import ast_transformer_utils as utils
@@ -56,6 +65,9 @@ def speed_up() -> bool:
         original_file = kernel_impl.getsourcefile
     except (ImportError, AttributeError):
         return False
+    finally:
+        if importing_taichi:
+            inspect.getframeinfo = _INSPECT_FRAMEINFO
 
     _originals.update(get_pos_info=original_pos_info)
     excerpts: dict = {}
@@ -123,12 +135,20 @@ def _frameinfo_from_linecache(frame, context=1):
     """inspect.getframeinfo for one line of context, its source line read from `linecache`
     by the frame's file name. Taichi's decorators read the line above each kernel and
     function (is it inside a class?), and inspect searched every loaded module for the
-    frame's file at each one. Other requests, and frames whose line linecache does not
-    have, go to inspect."""
-    line = linecache.getline(frame.f_code.co_filename, frame.f_lineno) if context == 1 else ""
-    if not line:
-        return inspect.getframeinfo(frame, context)
-    return (frame.f_code.co_filename, frame.f_lineno, frame.f_code.co_name, [line], 0)
+    frame's file at each one. A frame of no source file whose line linecache cannot find
+    either (importlib's own, one level above a module's top-level decorators while it is
+    imported) has no context, as inspect finds after its search. Other requests go to inspect."""
+    if context == 1:
+        filename, lineno, name = frame.f_code.co_filename, frame.f_lineno, frame.f_code.co_name
+        line = linecache.getline(filename, lineno, frame.f_globals)
+        if line:
+            return (filename, lineno, name, [line], 0)
+        if filename.startswith("<") and filename.endswith(">"):
+            return (filename, lineno, name, None, None)
+    getframeinfo = inspect.getframeinfo
+    if getframeinfo is _frameinfo_from_linecache:  # inspect's own, while taichi is imported
+        getframeinfo = _INSPECT_FRAMEINFO
+    return getframeinfo(frame, context)
 
 
 def _memo_by_function(read):

@@ -72,6 +72,38 @@ def test_frame_line_is_inspects():
     assert frontend._frameinfo_from_linecache(frame)[:3] == tuple(inspect.getframeinfo(frame)[:3])
 
 
+def test_frame_of_no_source_file_has_no_context_as_for_inspect():
+    """A module's top-level decorators look one frame above the module, into importlib's own
+    frozen code, whose source neither linecache nor inspect has: no context either way."""
+    scope: dict = {}
+    exec(compile("import sys\nframe = sys._getframe()\n", "<no such source>", "exec"), scope)
+    frame = scope["frame"]
+    assert inspect.getframeinfo(frame)[3] is None
+    assert frontend._frameinfo_from_linecache(frame)[3] is None
+    assert frontend._frameinfo_from_linecache(frame)[:3] == tuple(inspect.getframeinfo(frame)[:3])
+
+
+def test_importing_the_kernels_searches_no_module_for_source_lines():
+    """Importing Taichi and the solver's kernels (before any `init`) decorates some 400 Taichi
+    functions, and Taichi reads the line above each: with the memos installed first (the
+    subpackages' __init__) none of them goes to inspect.getframeinfo, which searched every
+    loaded module (~300 did)."""
+    import os
+    import subprocess
+
+    code = (
+        "import inspect\n"
+        "calls = []\n"
+        "original = inspect.getframeinfo\n"
+        "inspect.getframeinfo = lambda frame, context=1: calls.append(1) or original(frame, context)\n"
+        "import taichi_dcd.solver.kernels, taichi_dcd.output.run\n"
+        "print(len(calls))\n")
+    env = {k: v for k, v in os.environ.items() if k != frontend.PLAIN_ENV}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-1] == "0"
+
+
 @pytest.mark.parametrize("precision", ["f64", "f32"])
 def test_upload_matches_from_numpy(precision):
     import taichi_dcd

@@ -254,3 +254,17 @@ def test_force_never_overwrites_a_file_the_tool_did_not_write(tmp_path):
     assert_one_line_error(run_cli("run", "scene.toml", "--no-frames", "--force", "--out", "out", cwd=tmp_path), 2,
                           "metrics.json", "not written by this tool")
     assert snapshot(tmp_path) == before
+
+
+def test_output_piped_into_a_reader_that_stops_early_is_no_error(tmp_path):
+    """`taichi-dcd list | head -1`: the reader may close the pipe before the listing is
+    written (here before the command has started), and the command then ends without an
+    'internal error' line (it printed one)."""
+    env = dict(os.environ, ENABLE_TAICHI_HEADER_PRINT="False")
+    proc = subprocess.Popen([sys.executable, "-m", "taichi_dcd", "list"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()
+    status = proc.wait(timeout=120)
+    err = proc.stderr.read().decode()
+    assert "error" not in err and "Traceback" not in err, err
+    assert status in (0, 1)
