@@ -571,8 +571,12 @@ class UniformGrid:
         # Scratch of the loops that run in parallel and keep their output in one order.
         self.tri_slot = ti.ndarray(ti.i32, shape=size + 1)
         self.block_sum = block_sums()
-        self.query_count = ti.ndarray(ti.i32, shape=1)
         self._allocate_pairs(pair_capacity)
+        # A query whose loops are shared among threads also needs pairs_found and pair_query
+        # (as large as pairs) and query_count (one per query): allocated at the first such query.
+        self.pairs_found = self.pair_query = self.query_count = None
+        self._none_pairs = ti.ndarray(ivec2, shape=1)  # in their place for a serial query
+        self._none_counts = ti.ndarray(ti.i32, shape=1)
         self.n_pairs = 0
         self._static_binned = False
         self._launch = Launcher()
@@ -585,9 +589,19 @@ class UniformGrid:
 
     def _allocate_pairs(self, capacity: int) -> None:
         self.pairs = ti.ndarray(ivec2, shape=capacity)
-        # Where a parallel query's pairs land first, and the query and rank of each.
-        self.pairs_found = ti.ndarray(ivec2, shape=capacity)
-        self.pair_query = ti.ndarray(ivec2, shape=capacity)
+
+    def _order_scratch(self, serial: bool, queries: int) -> tuple:
+        """(pairs_found, pair_query, query_count) for _find_pairs: where a parallel query's pairs
+        land first, the query and rank of each, and each query's count; placeholders when the
+        loops run serially."""
+        if serial:
+            return self._none_pairs, self._none_pairs, self._none_counts
+        if self.pairs_found is None or self.pairs_found.shape[0] != self.pair_capacity:
+            self.pairs_found = ti.ndarray(ivec2, shape=self.pair_capacity)
+            self.pair_query = ti.ndarray(ivec2, shape=self.pair_capacity)
+        if self.query_count is None or self.query_count.shape[0] < queries:
+            self.query_count = ti.ndarray(ti.i32, shape=queries)
+        return self.pairs_found, self.pair_query, self.query_count
 
     def entries(self, group: int) -> int:
         """(cell, triangle) entries of the last binning of `group` (MOVING or STATIC)."""
@@ -649,16 +663,14 @@ class UniformGrid:
                 self._moving_binned = True
         moving, static = self.tables
         serial = runtime.serial_loops(moving.entries)
-        # One count per query: each moving entry, each triangle looking up coarser levels.
-        if not serial and self.query_count.shape[0] < moving.entries + self.n_tris:
-            self.query_count = ti.ndarray(ti.i32, shape=moving.capacity + self.n_tris + 1)
         while True:
+            # Queries: each moving entry, then each triangle that looks up coarser levels.
+            scratch = self._order_scratch(serial, moving.capacity + self.n_tris)
             n = self._launch(_find_pairs, self.tri, self.body_self, self.nbr_range, self.nbr, self.tri_level,
                              self.tri_box, self.group_count, moving.bucket_end, moving.bucket_bodies,
                              moving.entry_key, moving.entry_box, moving.active, static.bucket_end,
                              static.entry_key, static.entry_box, static.active,
-                             self.pairs, self.pairs_found, self.pair_query, self.query_count, self.block_sum,
-                             1.0 / self.cell_size, serial)
+                             self.pairs, *scratch, self.block_sum, 1.0 / self.cell_size, serial)
             if n <= self.pair_capacity:
                 break
             self._allocate_pairs(max(n, 2 * self.pair_capacity))

@@ -152,8 +152,9 @@ class CollisionPipeline:
         self.grid = UniformGrid(tri_indices, tri_body, tri_static, cell_size=cell_size, margin=margin,
                                 pair_capacity=pair_capacity, skin=skin, tri_hidden=tri_hidden, body_self=body_self)
         self.contacts = Contacts(contact_capacity)
-        # Each candidate's verdict, then its row's slot (parallel narrow phase).
-        self.pair_slot = ti.ndarray(ti.i32, shape=self.grid.pair_capacity + 1)
+        # Each candidate's verdict, then its row's slot (a narrow phase shared among threads;
+        # grown at the first).
+        self.pair_slot = ti.ndarray(ti.i32, shape=1)
         self.block_sum = block_sums()
         self._launch = Launcher()
 
@@ -171,13 +172,14 @@ class CollisionPipeline:
             middle = time.perf_counter()
             phase_seconds["broad"] = phase_seconds.get("broad", 0.0) + middle - start
         c = self.contacts
-        if self.pair_slot.shape[0] < n_pairs + 1:
+        serial = runtime.serial_loops(n_pairs)
+        if not serial and self.pair_slot.shape[0] < n_pairs + 1:
             self.pair_slot = ti.ndarray(ti.i32, shape=self.grid.pair_capacity + 1)
         while True:
             n = self._launch(_collide_candidates, particle_x, self.grid.tri, self.grid.pairs, n_pairs,
                              c.pair, c.depth, c.normal, c.side, c.point, c.counter, self.tri_sheet_gap,
                              self.tri_self_gap, particle_x if particle_x_prev is None else particle_x_prev,
-                             self.pair_slot, self.block_sum, runtime.serial_loops(n_pairs), self.keep_touching,
+                             self.pair_slot, self.block_sum, serial, self.keep_touching,
                              self.keep_pressed, self.two_sided, self.self_gaps)
             if n <= c.capacity:
                 break
