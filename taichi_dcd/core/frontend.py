@@ -11,15 +11,15 @@ pass took more than half of it on the solver's frame kernel (Taichi 1.7):
 - and, when a module of kernels is imported, the line above each decorated function, for
   which Python searches every loaded module for the function's file.
 
-`speed_up()` memoises them; the subpackages that hold kernels run it when they are
-imported, before their kernels and functions are decorated. Each memo returns the very string
-or lines the original returns for the same inputs (the key holds every input the original
-reads), but for a node's position while no error is being reported: that is Taichi's first
-line (file, line, function) and the node's source line, without the word-wrapped caret lines
-(~0.6 s of a first frame kernel's 2.6 s in the frontend). The position goes into the IR only
-as a message for checks made after the transform (debug mode's bounds checks); it is not part
-of a kernel's cache key, so compiled kernels and their cache keys are unchanged, and an error
-found while transforming gets Taichi's own excerpt. It patches nothing it does not recognise.
+`speed_up()` memoises the source lines and the decorators' lines: each memo returns the very
+lines the original returns for the same inputs. The subpackages that hold kernels run it when
+they are imported, before their kernels and functions are decorated. A node's position, while
+no error is being reported, is no longer Taichi's excerpt but its first line (file, line,
+function) and the node's source line, without the word-wrapped caret lines (~0.6 s of a first
+frame kernel's 2.6 s in the frontend). The position goes into the IR only as a message for
+checks made after the transform (debug mode's bounds checks); it is not part of a kernel's
+cache key, so compiled kernels and their cache keys are unchanged, and an error found while
+transforming gets Taichi's own excerpt. It patches nothing it does not recognise.
 """
 
 from __future__ import annotations
@@ -37,9 +37,6 @@ PLAIN_ENV = "TAICHI_DCD_PLAIN_FRONTEND"
 # The helpers replaced, for tests that compare against them.
 _originals: dict = {}
 _INSPECT_FRAMEINFO = inspect.getframeinfo
-
-# Node types whose multi-line position excerpt stops before their body (Taichi's rule).
-_HEADED = ("For", "While", "FunctionDef", "If")
 
 
 def left_plain() -> bool:
@@ -74,18 +71,14 @@ def speed_up() -> bool:
             inspect.getframeinfo = _INSPECT_FRAMEINFO
 
     _originals.update(get_pos_info=original_pos_info)
-    excerpts: dict = {}
 
     def get_pos_info(ctx, node):
         if getattr(ctx, "raised", True):  # an error being reported: Taichi's own excerpt
             return original_pos_info(ctx, node)
-        key = _position_key(ctx, node)
-        if key is None:
+        try:
+            return _short_position(ctx, node)
+        except (AttributeError, IndexError):
             return original_pos_info(ctx, node)
-        text = excerpts.get(key)
-        if text is None:
-            text = excerpts[key] = _short_position(ctx, node)
-        return text
 
     context.get_pos_info = get_pos_info
     kernel_impl.getsourcelines = _memo_by_function(original_lines)
@@ -98,24 +91,11 @@ def speed_up() -> bool:
     return True
 
 
-def _position_key(ctx, node) -> tuple | None:
-    """Everything Taichi's position excerpt of `node` reads: the function's file, first line,
-    name and indent, and the node's span (with its body's first line for a headed node).
-    None where a part is missing (then the original runs)."""
-    try:
-        body_line = node.body[0].lineno if type(node).__name__ in _HEADED and node.body else None
-        return (ctx.file, ctx.lineno_offset, ctx.func.func.__qualname__, ctx.indent,
-                type(node).__name__, node.lineno, node.end_lineno, node.col_offset,
-                node.end_col_offset, body_line)
-    except AttributeError:
-        return None
-
-
 def _short_position(ctx, node) -> str:
     """A node's position as the IR keeps it for messages raised after the transform (debug
     checks, later type errors): Taichi's first line (file, line, function) and the node's
     first source line, not word-wrapped and without the caret line under it."""
-    line = ctx.src[node.lineno - 1].rstrip() if 0 < node.lineno <= len(ctx.src) else ""
+    line = ctx.src[node.lineno - 1].rstrip()
     return (f'File "{ctx.file}", line {node.lineno + ctx.lineno_offset}, in {ctx.func.func.__name__}:\n'
             f"{line}\n")
 
