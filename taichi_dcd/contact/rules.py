@@ -16,8 +16,9 @@ class ContactRules:
         static face) leaves through a convex neighbour's face when that is nearer (contact.exits).
     surface_points: rows whose point lies on the other body's surface are held there (grazing
         rows between moving bodies) or dropped when they did not approach (resting rows).
-    moving_exit: between two moving bodies a row within the substep's allowance leaves through the
-        nearest convex neighbour's face as a deeper row does (contact.pair_rows).
+    moving_exit: between two moving bodies a row within the substep's allowance whose depth is
+        mostly older than the substep leaves through the nearest convex neighbour's face as a
+        deeper row does (contact.pair_rows).
     edge_edge_normal: two convex edges meeting push along their common normal.
     touching_rows: a row against a static body no deeper than rounding gives way to a vertex.
     duplicates: a point already a row of the same two bodies is not added twice.
