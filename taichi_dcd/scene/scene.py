@@ -63,9 +63,10 @@ class Scene:
     """A scene being simulated. `step(frames)` advances it; the accessors return numpy copies.
 
     broad_phase: "auto", "brute" or "grid" (solver.solver.XPBDSolver). rules: the contact rules
-    compiled in (contact.rules.ContactRules; all by default), for tests and studies."""
+    compiled in (contact.rules.ContactRules; all by default), for tests and studies.
+    sweep_stats: the solver counts its block solves' sweeps (XPBDSolver.sweep_stats)."""
 
-    def __init__(self, config: SceneConfig, broad_phase: str = "auto", rules=None):
+    def __init__(self, config: SceneConfig, broad_phase: str = "auto", rules=None, sweep_stats: bool = False):
         from ..solver.solver import XPBDSolver
 
         self.config = config
@@ -88,7 +89,8 @@ class Scene:
         self._reach = np.array([b.reach for b in self.model.bodies])
         self.solver = XPBDSolver(self.model, self.state, gravity=config.sim.gravity, broad_phase=broad_phase,
                                  length_scale=config.sim.length_scale, rules=rules,
-                                 sleep_speed=config.sim.sleep_speed, sleep_time=config.sim.sleep_time)
+                                 sleep_speed=config.sim.sleep_speed, sleep_time=config.sim.sleep_time,
+                                 sweep_stats=sweep_stats)
         # Bodies placed into each other: the independent measure's pairs deeper than rounding.
         self.start_overlaps = [
             {"bodies": [a, b], "depth": depth, "volume": volume}

@@ -49,6 +49,10 @@ _LAYOUT = {
     # solver.kernels.end_substep).
     "island_list": ("bodies", "int"), "island_count": ("one", "int"), "island_next": ("one", "int"),
     "island_rows": ("one", "int"),
+    # With sweep statistics on (SolverFields.count_sweeps), the block solves counted since the
+    # last reset (solver.islands.count_block_sweeps): for lone bodies, then for islands of
+    # several, the solves, their normal and friction sweeps, and the phases that ran to the cap.
+    "sweep_stats": ("one", "ivec10"),
     # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].
     "island_bodies": ("bodies", "int"), "island_body_first": ("bodies", "int"),
     "island_body_count": ("bodies", "int"),
@@ -127,18 +131,20 @@ class FieldView:
 class SolverFields:
     """The bundle `sim` every solver and contact-rule `ti.func` takes: `model` and `state` (the
     Model's and State's fields), the solver's own fields, `rules` (which contact rules are
-    compiled in) and `has_spin_friction` (whether the spin-friction pass is). Made by
+    compiled in), `has_spin_friction` (whether the spin-friction pass is) and `count_sweeps`
+    (whether the block solves count their sweeps into sweep_stats). Made by
     `solver_fields`, once per field set and variant, so that kernels compiled for it serve
     every scene that uses the set. Body fields have at least n_bodies rows, triangle fields
     n_tris, vertex fields n_vertices; lengths in metres.
     """
 
     def __init__(self, model: FieldView, state: FieldView, fields: dict, rules: ContactRules,
-                 has_spin_friction: bool, carry_capacity: int):
+                 has_spin_friction: bool, carry_capacity: int, count_sweeps: bool = False):
         self.model = model
         self.state = state
         self.rules = rules
         self.has_spin_friction = has_spin_friction
+        self.count_sweeps = count_sweeps
         self.carry_capacity = carry_capacity
         self.__dict__.update(fields)
         self.saved_carry = [fields[f"saved_carry_{k}"] for k in ("tri", "bary_moved", "bary_other", "normal", "count")]
@@ -148,11 +154,13 @@ class SolverFields:
         self.box_margin_np = np.zeros(0)
 
 
-def solver_fields(model: Model, state: State, rules: ContactRules | None = None) -> SolverFields:
+def solver_fields(model: Model, state: State, rules: ContactRules | None = None,
+                  count_sweeps: bool = False) -> SolverFields:
     """The solver's bundle for this Model and State, its fields filled for them: one made
     before for the same field set (core.pool) and variant, or a new one. `rules` says which
     contact rules are compiled in (all by default); the spin-friction pass is compiled in
-    only where some body has spin friction."""
+    only where some body has spin friction; `count_sweeps` compiles in the block solves'
+    sweep statistics."""
     m = model
     rules = rules or ContactRules()
     field_set = m.field_set
@@ -167,10 +175,10 @@ def solver_fields(model: Model, state: State, rules: ContactRules | None = None)
                                    has_cloth=m.has_cloth, has_self_gap=m.has_self_gap)
         parts["state"] = FieldView({k: field_set.fields[k] for k in STATE_FIELD_NAMES})
     has_spin_friction = bool((m.body_spin_friction.to_numpy()[: m.n_bodies] > 0.0).any())
-    key = ("sim", rules, has_spin_friction)
+    key = ("sim", rules, has_spin_friction) + (("count_sweeps",) if count_sweeps else ())
     if key not in parts:
         parts[key] = SolverFields(parts["model"], parts["state"], parts["solver"], rules, has_spin_friction,
-                                  carry_capacity=parts["solver"]["carry_tri"].shape[0])
+                                  carry_capacity=parts["solver"]["carry_tri"].shape[0], count_sweeps=count_sweeps)
     sim = parts[key]
     _fill(sim, parts["solver"], m, state, fresh)
     return sim

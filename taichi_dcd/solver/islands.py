@@ -388,9 +388,13 @@ def sweep_block(sim: ti.template(), rows: ti.template(), b: ti.i32, it: ti.i32):
             else:
                 rows.budget[k] = rows.budget[k] * load_budget_factor(sim, rows, k)
     inner = 0
+    normal_sweeps, friction_sweeps = 0, 0
     while inner < 2 * sweeps:
         friction = inner >= sweeps
         converged = True
+        if ti.static(sim.count_sweeps):
+            normal_sweeps += ti.select(friction, 0, 1)
+            friction_sweeps += ti.select(friction, 1, 0)
         for j in range(count):
             k = rows.block_rows[first + ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
             body = block_body(sim, rows, k)
@@ -405,6 +409,23 @@ def sweep_block(sim: ti.template(), rows: ti.template(), b: ti.i32, it: ti.i32):
         inner += 1
         if converged:
             inner = ti.select(friction, 2 * sweeps, ti.max(inner, sweeps))
+    if ti.static(sim.count_sweeps):
+        count_block_sweeps(sim, coupled, sweeps, normal_sweeps, friction_sweeps)
+
+
+@ti.func
+def count_block_sweeps(sim: ti.template(), coupled: bool, sweeps: ti.i32, normal_sweeps: ti.i32,
+                       friction_sweeps: ti.i32):
+    """Add one block solve to sweep_stats: [0:5] for a lone body, [5:10] for an island of
+    several bodies, each the solves, their normal and friction sweeps, and how many of the
+    two phases ran all `sweeps` sweeps (the cap)."""
+    counts = ti.Vector([1, normal_sweeps, friction_sweeps, ti.select(normal_sweeps == sweeps, 1, 0),
+                        ti.select(friction_sweeps == sweeps, 1, 0)])
+    for c in ti.static(range(5)):
+        if coupled:
+            ti.atomic_add(sim.sweep_stats[0][5 + c], counts[c])
+        else:
+            ti.atomic_add(sim.sweep_stats[0][c], counts[c])
 
 
 @ti.func

@@ -117,11 +117,14 @@ class XPBDSolver:
     bodies' start box a body may go before it counts as having left the scene (default
     LEFT_SCENE_SIZES scene sizes). sleep_time: s an island of rigid bodies must stay slower than
     sleep_speed (m/s, at every point) to fall asleep (solver.sleep); 0 (default): never.
+    sweep_stats: count the block solves' inner sweeps (`sweep_stats()`; a kernel variant of its
+    own, for benchmarks and studies).
     """
 
     def __init__(self, model: Model, state: State, gravity=(0.0, -9.8, 0.0), broad_phase: str = "auto",
                  contact_capacity: int | None = None, bound: float | None = None, length_scale: float = 1.0,
-                 rules: ContactRules | None = None, sleep_speed: float = 0.0, sleep_time: float = 0.0):
+                 rules: ContactRules | None = None, sleep_speed: float = 0.0, sleep_time: float = 0.0,
+                 sweep_stats: bool = False):
         runtime.ensure_init()
         self.model = model
         self.state = state
@@ -146,7 +149,9 @@ class XPBDSolver:
         self.use_grid = broad_phase == "grid" or (broad_phase == "auto" and pairs_upper > BRUTE_FORCE_MAX_PAIRS)
         self.contacts = ContactConstraints(contact_capacity or max(1024, 4 * m.n_tris))
         self.contact_growths = 0
-        self.sim = solver_fields(model, state, rules)
+        self.sim = solver_fields(model, state, rules, count_sweeps=sweep_stats)
+        if sweep_stats:
+            self.reset_sweep_stats()
         self.sim.sleep_speed[0] = float(sleep_speed)
         self.sim.sleep_time[0] = float(sleep_time)
         self.vertex_prev_nd = None
@@ -186,6 +191,28 @@ class XPBDSolver:
         self.phase_seconds: dict | None = None
 
     # ----------------------------------------------------------------- python
+    def reset_sweep_stats(self) -> None:
+        """Start counting the block solves' sweeps afresh (with sweep_stats on)."""
+        self.sim.sweep_stats.fill(0)
+
+    def sweep_stats(self) -> dict:
+        """The block solves since the last reset (with sweep_stats on), for lone rigid bodies
+        ("lone") and for islands of several ("coupled"): each a dict of `solves`, the mean
+        `normal_sweeps` and `friction_sweeps` a solve ran, and the share of the solves whose
+        normal or friction phase ran all its sweeps (`normal_at_cap`, `friction_at_cap`;
+        islands.BLOCK_SWEEPS and COUPLED_SWEEPS are the caps)."""
+        if not self.sim.count_sweeps:
+            raise RuntimeError("sweep statistics are off: make the solver with sweep_stats=True")
+        counts = self.sim.sweep_stats.to_numpy()[0]
+        out = {}
+        for name, part in (("lone", counts[0:5]), ("coupled", counts[5:10])):
+            solves = int(part[0])
+            per = max(solves, 1)
+            out[name] = {"solves": solves, "normal_sweeps": float(part[1]) / per,
+                         "friction_sweeps": float(part[2]) / per, "normal_at_cap": float(part[3]) / per,
+                         "friction_at_cap": float(part[4]) / per}
+        return out
+
     def contact_rows(self, h: float) -> dict:
         """The contact rows the rules write for the current state, as a substep of length h (s)
         would before solving them (all-pairs broad phase; the carried rows of the last substep
