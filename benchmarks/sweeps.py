@@ -16,7 +16,7 @@ from stacks import SCENES as STACKS
 from stacks import scene_of
 
 import taichi_dcd
-from taichi_dcd.scene.builtin import builtin_names
+from taichi_dcd.scene.builtin import KNOWN
 from taichi_dcd.solver.islands import BLOCK_SWEEPS, COUPLED_SWEEPS
 
 RIGID_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in-crack", "wedge-in-crack"]
@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("scenes", nargs="*", default=DEFAULT, help=f"default: {' '.join(DEFAULT)}")
     parser.add_argument("--seconds", type=float, default=1.0, help="simulated seconds of each scene (default 1)")
     args = parser.parse_args()
-    known = set(builtin_names()) | set(STACKS)
+    known = set(KNOWN) | set(STACKS)
     unknown = [s for s in args.scenes if s not in known]
     if unknown:
         parser.error(f"unknown scene {unknown[0]!r} (known: {', '.join(sorted(known))})")
