@@ -1,9 +1,10 @@
 """Where the contact solve's sweeps go: for each scene, how many inner Gauss-Seidel sweeps its
 block solves run (solver/islands.py: a normal phase, then a friction phase, each up to a cap)
-and how often a phase runs to its cap without converging. A lone rigid body's block (Erleben's
-scenes) has a cap of BLOCK_SWEEPS per phase, an island of several bodies (stacks, piles)
-COUPLED_SWEEPS. Counted by the solver's sweep statistics (a kernel variant of their own), over
---seconds of each scene with its own setting; no timing.
+and how often a phase runs to its cap without converging. "rows" is the mean rows a solve
+projects in each sweep, "projections" the row projections a solve makes in all. A lone rigid
+body's block (Erleben's scenes) has a cap of BLOCK_SWEEPS per phase, an island of several
+bodies (stacks, piles) COUPLED_SWEEPS. Counted by the solver's sweep statistics (a kernel
+variant of their own), over --seconds of each scene with its own setting; no timing.
 
 Usage: python benchmarks/sweeps.py [SCENE ...] [--seconds S]
 """
@@ -52,16 +53,17 @@ def main() -> None:
     print(machine_line())
     print(f"f64, each scene's own setting, its first {args.seconds:g} s; caps: {BLOCK_SWEEPS} sweeps a phase "
           f"for a lone body, {COUPLED_SWEEPS} for an island of several")
-    print(f"{'scene':16} {'block':8} {'solves':>8} {'normal sweeps':>13} {'at cap':>7} "
-          f"{'friction sweeps':>15} {'at cap':>7}")
+    print(f"{'scene':16} {'block':8} {'solves':>8} {'rows':>6} {'normal sweeps':>13} {'at cap':>7} "
+          f"{'friction sweeps':>15} {'at cap':>7} {'projections':>11}")
     for name in args.scenes:
         stats = count(name, args.seconds)
         for kind in ("lone", "coupled"):
             part = stats[kind]
             if part["solves"]:
-                print(f"{name:16} {kind:8} {part['solves']:>8} {part['normal_sweeps']:>13.1f} "
-                      f"{part['normal_at_cap']:>7.0%} {part['friction_sweeps']:>15.1f} {part['friction_at_cap']:>7.0%}",
-                      flush=True)
+                projections = part["rows"] * (part["normal_sweeps"] + part["friction_sweeps"])
+                print(f"{name:16} {kind:8} {part['solves']:>8} {part['rows']:>6.1f} {part['normal_sweeps']:>13.1f} "
+                      f"{part['normal_at_cap']:>7.0%} {part['friction_sweeps']:>15.1f} {part['friction_at_cap']:>7.0%} "
+                      f"{projections:>11.0f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -51,8 +51,9 @@ _LAYOUT = {
     "island_rows": ("one", "int"),
     # With sweep statistics on (SolverFields.count_sweeps), the block solves counted since the
     # last reset (solver.islands.count_block_sweeps): for lone bodies, then for islands of
-    # several, the solves, their normal and friction sweeps, and the phases that ran to the cap.
-    "sweep_stats": ("one", "ivec10"),
+    # several, the solves, their normal and friction sweeps, the phases that ran to the cap, and
+    # the rows solved.
+    "sweep_stats": ("one", "ivec12"),
     # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].
     "island_bodies": ("bodies", "int"), "island_body_first": ("bodies", "int"),
     "island_body_count": ("bodies", "int"),

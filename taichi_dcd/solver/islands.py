@@ -410,20 +410,20 @@ def sweep_block(sim: ti.template(), rows: ti.template(), b: ti.i32, it: ti.i32):
         if converged:
             inner = ti.select(friction, 2 * sweeps, ti.max(inner, sweeps))
     if ti.static(sim.count_sweeps):
-        count_block_sweeps(sim, coupled, sweeps, normal_sweeps, friction_sweeps)
+        count_block_sweeps(sim, coupled, count, sweeps, normal_sweeps, friction_sweeps)
 
 
 @ti.func
-def count_block_sweeps(sim: ti.template(), coupled: bool, sweeps: ti.i32, normal_sweeps: ti.i32,
+def count_block_sweeps(sim: ti.template(), coupled: bool, rows: ti.i32, sweeps: ti.i32, normal_sweeps: ti.i32,
                        friction_sweeps: ti.i32):
-    """Add one block solve to sweep_stats: [0:5] for a lone body, [5:10] for an island of
-    several bodies, each the solves, their normal and friction sweeps, and how many of the
-    two phases ran all `sweeps` sweeps (the cap)."""
+    """Add one block solve of `rows` rows to sweep_stats: [0:6] for a lone body, [6:12] for an
+    island of several bodies, each the solves, their normal and friction sweeps, how many of
+    the two phases ran all `sweeps` sweeps (the cap), and the rows."""
     counts = ti.Vector([1, normal_sweeps, friction_sweeps, ti.select(normal_sweeps == sweeps, 1, 0),
-                        ti.select(friction_sweeps == sweeps, 1, 0)])
-    for c in ti.static(range(5)):
+                        ti.select(friction_sweeps == sweeps, 1, 0), rows])
+    for c in ti.static(range(6)):
         if coupled:
-            ti.atomic_add(sim.sweep_stats[0][5 + c], counts[c])
+            ti.atomic_add(sim.sweep_stats[0][6 + c], counts[c])
         else:
             ti.atomic_add(sim.sweep_stats[0][c], counts[c])
 

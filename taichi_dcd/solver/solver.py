@@ -200,17 +200,18 @@ class XPBDSolver:
         ("lone") and for islands of several ("coupled"): each a dict of `solves`, the mean
         `normal_sweeps` and `friction_sweeps` a solve ran, and the share of the solves whose
         normal or friction phase ran all its sweeps (`normal_at_cap`, `friction_at_cap`;
-        islands.BLOCK_SWEEPS and COUPLED_SWEEPS are the caps)."""
+        islands.BLOCK_SWEEPS and COUPLED_SWEEPS are the caps), and the mean `rows` a solve
+        projects in each sweep (a sweep's cost)."""
         if not self.sim.count_sweeps:
             raise RuntimeError("sweep statistics are off: make the solver with sweep_stats=True")
         counts = self.sim.sweep_stats.to_numpy()[0]
         out = {}
-        for name, part in (("lone", counts[0:5]), ("coupled", counts[5:10])):
+        for name, part in (("lone", counts[0:6]), ("coupled", counts[6:12])):
             solves = int(part[0])
             per = max(solves, 1)
             out[name] = {"solves": solves, "normal_sweeps": float(part[1]) / per,
                          "friction_sweeps": float(part[2]) / per, "normal_at_cap": float(part[3]) / per,
-                         "friction_at_cap": float(part[4]) / per}
+                         "friction_at_cap": float(part[4]) / per, "rows": float(part[5]) / per}
         return out
 
     def contact_rows(self, h: float) -> dict:

@@ -64,6 +64,13 @@ def test_sweep_counts_stay_within_the_caps(runs):
         assert part["friction_sweeps"] >= part["friction_at_cap"] * cap
 
 
+def test_the_island_of_two_boxes_solves_more_rows_than_the_lone_box(runs):
+    stats = runs[True].solver.sweep_stats()
+    # The lower box has the lone box's ground rows, and the rows to the box on it come on top.
+    assert 1.0 <= stats["lone"]["rows"] < stats["coupled"]["rows"]
+    assert stats["coupled"]["rows"] < 100  # 3 × 12 triangles: far fewer rows than pairs
+
+
 def test_statistics_of_a_solver_that_does_not_count_are_an_error(runs):
     with pytest.raises(RuntimeError, match="sweep statistics are off"):
         runs[False].solver.sweep_stats()
