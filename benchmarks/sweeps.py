@@ -17,11 +17,10 @@ from stacks import SCENES as STACKS
 from stacks import scene_of
 
 import taichi_dcd
-from taichi_dcd.scene.builtin import KNOWN
+from taichi_dcd.scene.builtin import ERLEBEN_SIX, KNOWN
 from taichi_dcd.solver.islands import BLOCK_SWEEPS, COUPLED_SWEEPS
 
-RIGID_SIX = ["spikes", "spike-and-wedge", "wedges", "spike-in-hole", "spike-in-crack", "wedge-in-crack"]
-DEFAULT = RIGID_SIX + list(STACKS)
+DEFAULT = ERLEBEN_SIX + list(STACKS)
 
 
 def count(name: str, seconds: float) -> dict:
