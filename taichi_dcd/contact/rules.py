@@ -34,6 +34,8 @@ class ContactRules:
     near_vertex: between two rigid bodies a point a hair from a vertex over the other face is that
         vertex, and its budget is not capped at its depth (contact.rows).
     shock_propagation: a light body under a much heavier one holds still in their contact.
+    support_pass: after an island's sweeps, its rows that carry weight are projected once more
+        level by level from the ground up, each lower body held still (solver.islands).
     """
 
     touching_pairs: bool = True
@@ -54,6 +56,7 @@ class ContactRules:
     carried_hold: bool = True
     near_vertex: bool = True
     shock_propagation: bool = True
+    support_pass: bool = True
 
     @classmethod
     def without(cls, *names: str) -> "ContactRules":

@@ -57,6 +57,9 @@ _LAYOUT = {
     # Each island's rigid bodies, by root: island_bodies[island_body_first[root]:][:island_body_count[root]].
     "island_bodies": ("bodies", "int"), "island_body_first": ("bodies", "int"),
     "island_body_count": ("bodies", "int"),
+    # The unit vector against gravity (0 without gravity), set by integrate.predict each
+    # substep: solver.islands.support_pass projects the rows whose normal lies near it.
+    "up": ("one", "vec3"),
     "body_thickness": ("bodies", "scalar"),
     "body_reach": ("bodies", "scalar"),  # farthest vertex from a rigid body's centre (m)
     # Per body for the next frame's substep choice (_summarize_bodies): velocity (3),

@@ -51,7 +51,13 @@ def place_vertex(sim: ti.template(), i: ti.i32):
 
 @ti.func
 def predict(sim: ti.template(), h: float, gravity: vec3, kick: float):
-    """Predict every rigid body and soft particle (Müller 2020, Alg. 2, lines 3-8)."""
+    """Predict every rigid body and soft particle (Müller 2020, Alg. 2, lines 3-8), and keep
+    the unit vector against gravity in sim.up."""
+    up = vec3(0.0)
+    g_norm = gravity.norm()
+    if g_norm > 0.0:
+        up = -gravity / g_norm
+    sim.up[0] = up
     for b in range(sim.model.body_count[0]):
         predict_body(sim, b, h, gravity, kick)
     if ti.static(sim.model.has_soft):
