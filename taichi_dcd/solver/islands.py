@@ -452,7 +452,7 @@ def support_pass(sim: ti.template(), rows: ti.template(), first: ti.i32, count: 
             for j in range(count):
                 k = rows.block_rows[first + ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
                 if support_level(sim, rows, k) == level:
-                    if support_row(sim, rows, k, False) > tol * rows.block_lever[k].norm():
+                    if support_row(sim, rows, k) > tol * rows.block_lever[k].norm():
                         converged = False
             inner = ti.select(converged, BLOCK_SWEEPS, inner + 1)
 
@@ -470,7 +470,7 @@ def support_level(sim: ti.template(), rows: ti.template(), k: ti.i32) -> ti.i32:
 
 
 @ti.func
-def support_row(sim: ti.template(), rows: ti.template(), k: ti.i32, friction: bool) -> float:
+def support_row(sim: ti.template(), rows: ti.template(), k: ti.i32) -> float:
     """Row k's normal projected in support_pass: against a static body as in the sweeps;
     between two rigid bodies with the lower-level one held still (its share 0, K the upper
     body's alone), both moving if they stand at one level. Returns how far it moved its
@@ -479,7 +479,7 @@ def support_row(sim: ti.template(), rows: ti.template(), k: ti.i32, friction: bo
     body = block_body(sim, rows, k)
     moved = 0.0
     if body >= 0:
-        moved = solve_block_row(sim, rows, k, body, friction, leave)
+        moved = solve_block_row(sim, rows, k, body, False, leave)
     else:
         tri = rows.tri[k]
         body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
@@ -487,7 +487,7 @@ def support_row(sim: ti.template(), rows: ti.template(), k: ti.i32, friction: bo
         f_o = ti.select(sim.body_level[body_o] < sim.body_level[body_m], 0.0, 1.0)
         r_m = rows.block_lever[k]
         r_o = r_m + sim.state.body_x_prev[body_m] - sim.state.body_x_prev[body_o]
-        moved = project_pair_row(sim, rows, k, friction, leave, f_m, f_o,
+        moved = project_pair_row(sim, rows, k, False, leave, f_m, f_o,
                                  pair_inv_mass(sim, body_m, body_o, r_m, r_o, f_m, f_o))
     return moved
 
@@ -522,9 +522,10 @@ def project_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, fricti
     """The positional impulse P (kg·m, on the moved side) that row k adds in one block
     sweep, its moved anchor displaced by d (m) relative to the other since the
     linearisation: gap g = g0 − N·d, tangential slip s = s0 + d_t, K = k_mat (3×3 inverse
-    mass at the anchor, both bodies' that move: rows.block_k[k] but in support_pass). The normal pushes c = min(g, budget) when c > 0 or
-    while it holds λ_n > 0, spending the budget; with `leave` (leaves_depth) the budget is the
-    depth the row may leave and c = g − budget, spending nothing. Friction then cancels the
+    mass at the anchor of the bodies that move: rows.block_k[k] but in support_pass). The
+    normal pushes c = min(g, budget) when c > 0 or while it holds λ_n > 0, spending the
+    budget; with `leave` (leaves_depth) the budget is the depth the row may leave and
+    c = g − budget, spending nothing. Friction then cancels the
     slip left, |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0
     for a row that does nothing."""
     impulse = vec3(0.0)
