@@ -20,7 +20,8 @@ from .contact_solve import (
     solve_velocities,
 )
 from .integrate import place_vertex, predict, update_velocities
-from .islands import block_body, pair_block, solve_blocks
+from .block_rows import block_body, pair_block
+from .islands import solve_blocks
 from .sleep import update_sleep
 from .soft import solve_edge, solve_volume
 from .soft_spin import measure_internal_spin
