@@ -14,6 +14,7 @@ import numpy as np
 import trimesh
 
 from ..core import runtime
+from ..core.model import RIGID
 from ..scene.scene import Scene
 from ..solver.solver import SimulationError
 
@@ -157,6 +158,9 @@ class FrameWriter:
 
 # The GIF keeps every GIF_EVERY-th frame at half resolution (real time at 0.01 s frames).
 GIF_EVERY = 4
+# A scene without sim.sleep whose every body has been at rest (SettleClock) this long (s, times
+# √length_scale) gets one notice that sleeping would stop simulating it.
+REST_NOTICE_TIME = 1.0
 CSV_COLUMNS = ["time", "penetration_depth", "overlap_volume", "kinetic_energy", "potential_energy",
                "contact_count", "max_vertex_speed"]
 # With soft bodies: their own crossing triangle pairs and the deepest (Scene.self_penetration).
@@ -179,6 +183,10 @@ class SettleClock:
         else:
             self.calm_since = None
         return self.calm_since is not None and time_s - self.calm_since >= self.sim.settle_time * (1 - 1e-9)
+
+    def at_rest_for(self, time_s: float) -> float:
+        """s for which every vertex has been calm at `time_s` (0 if it is not)."""
+        return 0.0 if self.calm_since is None else time_s - self.calm_since
 
 
 def energy_drift(energy_start: float, kinetic, potential) -> float:
@@ -217,6 +225,7 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
     energy_start = scene.kinetic_energy() + scene.potential_energy()
     growths = scene.solver.contact_growths
     fast_reported = False
+    rest_reported = sim.sleep or not (scene.model.body_kind_np == RIGID).any()
     rows = []
     error = None
     interrupted = False
@@ -267,6 +276,12 @@ def run_scene(scene: Scene, out_dir, frames: int | None = None, progress=sys.std
             if writer:
                 writer.write(last_good)
             settled = clock.update(scene.time, speed)
+            if not rest_reported and notices is not None and clock.at_rest_for(scene.time) >= REST_NOTICE_TIME * np.sqrt(
+                    sim.length_scale):
+                print(f"taichi-dcd: frame {f + 1}: every body has been at rest since t = {clock.calm_since:.3g} s and "
+                      "is still simulated in full; `sleep = true` under [sim] stops simulating bodies at rest "
+                      "(docs/scene-format.md)", file=notices, flush=True)
+                rest_reported = True
             now = time.perf_counter()
             if f == 0:
                 first_frame_end = now
