@@ -53,6 +53,8 @@ class ContactRows(NamedTuple):
     block_gap: Any
     block_k: Any
     block_rows: Any
+    block_mu: Any
+    block_reach: Any
 
 
 class ContactConstraints(GrowableBuffer):
@@ -74,7 +76,10 @@ class ContactConstraints(GrowableBuffer):
     `impulse_t[k]` the dynamic-friction impulse accumulated by the velocity pass (kg·m/s);
     `block_*` the linearisation of a rigid body's row (solver.islands.solve_blocks):
     its lever from the (moved) body's centre (m), tangential slip (m), gap (m) and 3×3 inverse
-    mass (the two bodies' summed for a row between rigid bodies);
+    mass (the two bodies' summed for a row between rigid bodies), and for the sweeps, which
+    project each row many times, its friction coefficient μ (`block_mu`) and the length of
+    its lever (`block_reach`, m: a sweep has converged once no row moves its anchor by more
+    than a tolerance times that);
     `block_rows` the indices of those rows.
     """
 
@@ -96,6 +101,8 @@ class ContactConstraints(GrowableBuffer):
         self.block_gap = ti.ndarray(real, shape=capacity)
         self.block_k = ti.ndarray(ti.types.matrix(3, 3, real), shape=capacity)
         self.block_rows = ti.ndarray(ti.i32, shape=capacity)
+        self.block_mu = ti.ndarray(real, shape=capacity)
+        self.block_reach = ti.ndarray(real, shape=capacity)
 
     def arrays(self) -> tuple:
         """The ndarrays in the order the solver's kernels take them (ContactRows' fields)."""

@@ -7,7 +7,7 @@ import taichi as ti
 from ..contact.rows import both_rigid
 from ..core.model import RIGID, STATIC
 from ..core.rigid import inv_mass_matrix_world
-from .contact_solve import friction_in_cone, pair_friction, takes_part
+from .contact_solve import friction_in_cone, takes_part
 
 vec3 = ti.math.vec3
 
@@ -52,9 +52,12 @@ def project_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, fricti
     normal pushes c = min(g, budget) when c > 0 or while it holds λ_n > 0, spending the
     budget; with `leave` (leaves_depth) the budget is the depth the row may leave and
     c = g − budget, spending nothing. Friction then cancels the
-    slip left, |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27). Updates λ_n, λ_t and the budget; P = 0
-    for a row that does nothing."""
+    slip left, |λ_t| ≤ μ·λ_n (Müller 2020, Eq. 26-27; μ = rows.block_mu[k]). Updates λ_n, λ_t
+    and the budget. Returns (P, K·P): K·P is how far P moves the anchor, which the caller
+    needs too (computed once: a row's projection is the islands' inner loop); both 0 for a row
+    that does nothing."""
     impulse = vec3(0.0)
+    k_impulse = vec3(0.0)
     n = rows.normal[k]
     slip = rows.block_slip[k] + d - d.dot(n) * n
     gap = rows.block_gap[k] - n.dot(d)
@@ -72,13 +75,14 @@ def project_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, fricti
         if friction and length > 0.0:
             t = slip_left / length
             new_t = friction_in_cone(old_t + (length / t.dot(k_mat @ t)) * t,
-                                     pair_friction(sim, rows.tri[k][0], rows.tri[k][1]) * lam_n)
+                                     rows.block_mu[k] * lam_n)
         impulse = push * n - (new_t - old_t)
         rows.lambda_n[k] = lam_n
         rows.lambda_t[k] = new_t
+        k_impulse = k_mat @ impulse
         if not leave:
-            rows.budget[k] = rows.budget[k] - n.dot(k_mat @ impulse)
-    return impulse
+            rows.budget[k] = rows.budget[k] - n.dot(k_impulse)
+    return impulse, k_impulse
 
 
 @ti.func
@@ -103,8 +107,8 @@ def project_pair_row(sim: ti.template(), rows: ti.template(), k: ti.i32, frictio
     r_o = r_m + sim.state.body_x_prev[body_m] - sim.state.body_x_prev[body_o]
     d = (sim.block_dx[body_m] + sim.block_dtheta[body_m].cross(r_m)
          - sim.block_dx[body_o] - sim.block_dtheta[body_o].cross(r_o))
-    impulse = project_block_row(sim, rows, k, friction, d, leave, k_mat)
-    moved_by = (k_mat @ impulse).norm()
+    impulse, k_impulse = project_block_row(sim, rows, k, friction, d, leave, k_mat)
+    moved_by = k_impulse.norm()
     if moved_by > 0.0:
         sim.block_dx[body_m] = sim.block_dx[body_m] + f_m * sim.model.body_inv_mass[body_m] * impulse
         sim.block_dtheta[body_m] = sim.block_dtheta[body_m] + f_m * (sim.block_inv_inertia[body_m] @ r_m.cross(impulse))
@@ -126,8 +130,8 @@ def solve_block_row(sim: ti.template(), rows: ti.template(), k: ti.i32, b: ti.i3
     sign = ti.select(sim.model.tri_body[tri[0]] == b, 1.0, -1.0)
     r = rows.block_lever[k]
     d = sign * (sim.block_dx[b] + sim.block_dtheta[b].cross(r))
-    impulse = project_block_row(sim, rows, k, friction, d, leave, rows.block_k[k])
-    moved_by = (rows.block_k[k] @ impulse).norm()
+    impulse, k_impulse = project_block_row(sim, rows, k, friction, d, leave, rows.block_k[k])
+    moved_by = k_impulse.norm()
     if moved_by > 0.0:
         body_impulse = sign * impulse
         sim.block_dx[b] = sim.block_dx[b] + sim.model.body_inv_mass[b] * body_impulse

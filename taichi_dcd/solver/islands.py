@@ -10,7 +10,7 @@ from ..core import runtime
 from ..core.model import RIGID
 from ..core.rigid import inv_mass_matrix_world, rotate_by
 from .block_rows import block_body, pair_block, pair_inv_mass, project_pair_row, solve_block_row, solve_pair_row
-from .contact_solve import SHOCK_MASS_RATIO, takes_part
+from .contact_solve import SHOCK_MASS_RATIO, pair_friction, takes_part
 
 vec3 = ti.math.vec3
 
@@ -238,15 +238,18 @@ def linearise_row(sim: ti.template(), rows: ti.template(), k: ti.i32):
     slip = (p_m - anchor_world(sim, tri[0], bm, True)) - (p_o - anchor_world(sim, tri[1], bo, True))
     rows.block_slip[k] = slip - slip.dot(n) * n
     p_c = 0.5 * (p_m + p_o)
+    rows.block_mu[k] = pair_friction(sim, tri[0], tri[1])
     if b >= 0:
         r = p_c - sim.state.body_x_prev[b]
         rows.block_lever[k] = r
+        rows.block_reach[k] = r.norm()
         rows.block_k[k] = inv_mass_matrix_world(sim.model.body_inv_mass[b], sim.block_inv_inertia[b], r)
     else:
         body_m, body_o = sim.model.tri_body[tri[0]], sim.model.tri_body[tri[1]]
         r_m = p_c - sim.state.body_x_prev[body_m]
         r_o = p_c - sim.state.body_x_prev[body_o]
         rows.block_lever[k] = r_m
+        rows.block_reach[k] = r_m.norm()
         f_m, f_o = takes_part(sim, tri[0], tri[1]), takes_part(sim, tri[1], tri[0])
         rows.block_k[k] = pair_inv_mass(sim, body_m, body_o, r_m, r_o, f_m, f_o)
 
@@ -392,7 +395,7 @@ def sweep_block(sim: ti.template(), rows: ti.template(), b: ti.i32, it: ti.i32):
                 moved = solve_block_row(sim, rows, k, body, friction, leave)
             else:
                 moved = solve_pair_row(sim, rows, k, friction, leave)
-            if moved > tol_r * rows.block_lever[k].norm():
+            if moved > tol_r * rows.block_reach[k]:
                 converged = False
         inner += 1
         if converged:
@@ -432,7 +435,7 @@ def support_pass(sim: ti.template(), rows: ti.template(), first: ti.i32, count: 
             for j in range(count):
                 k = rows.block_rows[first + ti.select((it + inner) % 2 == 0, j, count - 1 - j)]
                 if support_level(sim, rows, k) == level:
-                    if support_row(sim, rows, k) > tol * rows.block_lever[k].norm():
+                    if support_row(sim, rows, k) > tol * rows.block_reach[k]:
                         converged = False
             inner = ti.select(converged, BLOCK_SWEEPS, inner + 1)
 

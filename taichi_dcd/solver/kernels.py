@@ -66,7 +66,7 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                       b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                       b_gap: ti.types.ndarray(ndim=1),
                       b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(7, ti.i32):
+                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(7, ti.i32):
     """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
     substep). Each frame starts from a snapshot of the state. With `check`, each frame
     first asks `substeps_needed` whether `substeps` suffice; if not, with `choose` it runs
@@ -78,7 +78,7 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
     bad body, the bad frame counted as done; frames run with more substeps, the most
     substeps of a frame, the substeps they ran beyond `substeps`)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows, b_mu, b_reach))
     done = 0
     most = 0
     n = 0
@@ -163,7 +163,7 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                 b_gap: ti.types.ndarray(ndim=1),
                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1),
                 islands: ti.template(), serial: ti.template()) -> ti.types.vector(2, ti.i32):
     """The grid's contacts into rows, projection and velocities of one substep (the same
     sequence as the all-pairs path, solver.substep), the vertices placed and the state checked,
@@ -174,7 +174,7 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
     checked (serial). An island touches only its own bodies and rows, so the result is the same
     bits on any number of threads. Returns (rows, state check)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows, b_mu, b_reach))
     pairs = ti.static(PairResults(p_pair, p_side, p_depth, p_normal, p_point))
     n = 0
     status = 0
@@ -226,10 +226,10 @@ def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.nd
                    b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                    b_gap: ti.types.ndarray(ndim=1),
                    b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                   b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1)) -> ti.types.vector(2, ti.i32):
+                   b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(2, ti.i32):
     """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
-                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows))
+                                 c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows, b_mu, b_reach))
     needed = 0
     n = 0
     ti.loop_config(serialize=True)
