@@ -66,7 +66,8 @@ def frames_all_pairs(sim: ti.template(), frames: ti.i32, substeps: ti.i32, itera
                       b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                       b_gap: ti.types.ndarray(ndim=1),
                       b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(7, ti.i32):
+                      b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(7, ti.i32):
     """Up to `frames` frames of substeps, serially in one launch (Müller 2020, Alg. 2 per
     substep). Each frame starts from a snapshot of the state. With `check`, each frame
     first asks `substeps_needed` whether `substeps` suffice; if not, with `choose` it runs
@@ -163,7 +164,8 @@ def end_substep(sim: ti.template(), iterations: ti.i32, h: float, g_norm: float,
                 b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                 b_gap: ti.types.ndarray(ndim=1),
                 b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1),
+                b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1),
                 islands: ti.template(), serial: ti.template()) -> ti.types.vector(2, ti.i32):
     """The grid's contacts into rows, projection and velocities of one substep (the same
     sequence as the all-pairs path, solver.substep), the vertices placed and the state checked,
@@ -226,7 +228,8 @@ def rows_at_state_kernel(sim: ti.template(), max_push: float, c_tri: ti.types.nd
                    b_lever: ti.types.ndarray(dtype=vec3, ndim=1), b_slip: ti.types.ndarray(dtype=vec3, ndim=1),
                    b_gap: ti.types.ndarray(ndim=1),
                    b_k: ti.types.ndarray(dtype=mat3, ndim=1),
-                   b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1), b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(2, ti.i32):
+                   b_rows: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                   b_mu: ti.types.ndarray(ndim=1), b_reach: ti.types.ndarray(ndim=1)) -> ti.types.vector(2, ti.i32):
     """The contact rows of the current state, unsolved (solver.substep.rows_at_state)."""
     rows = ti.static(ContactRows(c_tri, c_bary_moved, c_bary_other, c_normal, c_budget, c_hold, c_lambda_n,
                                  c_lambda_t, c_vn0, c_impulse_t, b_lever, b_slip, b_gap, b_k, b_rows, b_mu, b_reach))
