@@ -17,11 +17,11 @@ The median of the repeats is reported, the queries taking turns. Contact counts 
 printed, and every pair only one side reports is classified in exact rational arithmetic
 (touching, coplanar, crossing, apart).
 
-Then the scaling curve: the shift placement from 1k to 1M triangles in total, time per
-query, printed and plotted.
+Then the scaling curve: each placement (or those of --placements) from 1k to 1M triangles in
+total, time per query, printed and plotted.
 
 Usage: python benchmarks/broadphase.py [--sections M] [--repeat R] [--max-triangles N]
-       [--threads T] [--out DIR]
+       [--placements P,...] [--threads T] [--out DIR]
 """
 
 import argparse
@@ -188,27 +188,32 @@ def placements_table(sections: int, repeat: int, fcl_ok: bool) -> None:
               f"{t_rigid / t_fcl:8.2f} {n_ours:13d} {n_fcl:12d} {n_cand:10d}")
 
 
-def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None:
+def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str, placements=PLACEMENTS) -> None:
+    """Time per query from 1k to `max_triangles` triangles in each placement; printed, and
+    plotted (times in the shift placement, ours against FCL in every placement)."""
     targets = [t for t in (1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_000) if t <= max_triangles]
     rows = []
     print()
-    print(f"scaling, shift placement: {'triangles':>9s} {'rigid ms':>9s} {'world ms':>9s} {'FCL ms':>9s} "
-          f"{'ours/FCL':>8s} {'contacts':>9s} {'build s':>7s}")
-    for target in targets:
-        # Two tori of M × M/2 quads, 2 triangles each: 2·M² triangles in all.
-        sections = max(8, int(round(np.sqrt(target / 2))))
-        a, pose = torus_pair(sections, "shift")
-        n_tris = 2 * len(a.faces)
-        start = time.perf_counter()
-        rigid = OursRigid(a, pose)
-        build = time.perf_counter() - start
-        world = OursWorld(a, pose)
-        reps = max(3, min(repeat, int(2e6 // n_tris)))
-        fns = [rigid.query, world.query] + ([FCL(a, pose).query] if fcl_ok else [])
-        times = median_times(fns, reps) + ([] if fcl_ok else [float("nan")])
-        rows.append((n_tris, *times))
-        print(f"{'':26s} {n_tris:9d} {1e3 * times[0]:9.2f} {1e3 * times[1]:9.2f} {1e3 * times[2]:9.2f} "
-              f"{times[0] / times[2]:8.2f} {rigid.query():9d} {build:7.2f}", flush=True)
+    print(f"scaling: {'placement':>9s} {'triangles':>9s} {'rigid ms':>9s} {'world ms':>9s} {'FCL ms':>9s} "
+          f"{'rigid/FCL':>9s} {'world/FCL':>9s} {'contacts':>9s} {'build s':>7s}")
+    for placement in placements:
+        for target in targets:
+            # Two tori of M × M/2 quads, 2 triangles each: 2·M² triangles in all.
+            sections = max(8, int(round(np.sqrt(target / 2))))
+            a, pose = torus_pair(sections, placement)
+            n_tris = 2 * len(a.faces)
+            start = time.perf_counter()
+            rigid = OursRigid(a, pose)
+            build = time.perf_counter() - start
+            world = OursWorld(a, pose)
+            reps = max(3, min(repeat, int(2e6 // n_tris)))
+            fns = [rigid.query, world.query] + ([FCL(a, pose).query] if fcl_ok else [])
+            times = median_times(fns, reps) + ([] if fcl_ok else [float("nan")])
+            rows.append((placement, n_tris, *times))
+            print(f"{'':8s} {placement:>9s} {n_tris:9d} {1e3 * times[0]:9.2f} {1e3 * times[1]:9.2f} "
+                  f"{1e3 * times[2]:9.2f} {times[0] / times[2]:9.2f} {times[1] / times[2]:9.2f} "
+                  f"{rigid.query():9d} {build:7.2f}", flush=True)
+            del rigid, world, fns
     try:
         import matplotlib
 
@@ -217,17 +222,30 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str) -> None
     except ImportError:
         print("(matplotlib not installed: no plot; pip install -e .[bench])")
         return
-    n, t_r, t_w, t_f = (np.array(col) for col in zip(*rows))
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    fig, (ax, ax_ratio) = plt.subplots(1, 2, figsize=(11, 4.2))
+    shown = "shift" if "shift" in placements else placements[0]
+    n, t_r, t_w, t_f = (np.array(col) for col in zip(*[r[1:] for r in rows if r[0] == shown]))
     ax.loglog(n, 1e3 * t_r, "o-", label="taichi_dcd rigid (grids built once per body)")
     ax.loglog(n, 1e3 * t_w, "^-", label="taichi_dcd world (grid built per query)")
     if fcl_ok:
         ax.loglog(n, 1e3 * t_f, "s--", label="python-fcl collide (BVH, all contacts)")
     ax.loglog(n, 1e3 * t_w[-1] * n / n[-1], ":", color="gray", label="linear")
-    ax.set_xlabel("triangles (two tori, shifted 0.3)")
+    ax.set_xlabel(f"triangles (two tori, {shown} placement)")
     ax.set_ylabel("time per contact query [ms]")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8)
+    if fcl_ok:
+        for placement, marker in zip(placements, "osd"):
+            n, t_r, t_w, t_f = (np.array(col) for col in zip(*[r[1:] for r in rows if r[0] == placement]))
+            ax_ratio.semilogx(n, t_r / t_f, marker + "-", label=f"rigid, {placement}")
+            ax_ratio.semilogx(n, t_w / t_f, marker + ":", alpha=0.6, label=f"world, {placement}")
+        ax_ratio.axhline(1.0, color="gray", lw=1)
+        ax_ratio.axhline(0.5, color="gray", lw=1, ls="--")
+        ax_ratio.set_yscale("log")
+        ax_ratio.set_xlabel("triangles (two tori)")
+        ax_ratio.set_ylabel("our time / FCL's (below 1: faster)")
+        ax_ratio.grid(True, which="both", alpha=0.3)
+        ax_ratio.legend(fontsize=8, ncol=2)
     fig.tight_layout()
     os.makedirs(out_dir, exist_ok=True)
     path = os.path.join(out_dir, "broadphase_scaling.png")
@@ -271,6 +289,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=30, help="timed queries per figure; the median is reported")
     parser.add_argument("--max-triangles", type=int, default=1_000_000, help="largest size in the scaling curve")
     parser.add_argument("--no-scaling", action="store_true", help="skip the scaling curve")
+    parser.add_argument("--placements", default=",".join(PLACEMENTS),
+                        help=f"comma list of the scaling curve's placements (default {','.join(PLACEMENTS)})")
     parser.add_argument("--threads", type=int, default=1, help="CPU threads for our kernels (FCL uses one)")
     parser.add_argument("--out", default="outputs/benchmarks", help="where the plot goes")
     parser.add_argument("--speedup-sections", type=int, default=320,
@@ -279,6 +299,11 @@ def main() -> None:
     parser.add_argument("--time-rigid", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
 
+    placements = tuple(p for p in args.placements.split(",") if p)
+    unknown = [p for p in placements if p not in PLACEMENTS]
+    if unknown or not placements:
+        parser.error(f"--placements: unknown placement {unknown[0] if unknown else '(none)'!r} "
+                     f"(known: {', '.join(PLACEMENTS)})")
     runtime.init(precision="f64", cpu_threads=args.threads)
     if args.time_rigid:
         print(time_rigid(args.time_rigid, args.repeat))
@@ -290,7 +315,7 @@ def main() -> None:
     print(f"our threads: {args.threads}; f64; cell size: automatic")
     placements_table(args.sections, args.repeat, fcl_ok)
     if not args.no_scaling:
-        scaling(args.max_triangles, args.repeat, fcl_ok, args.out)
+        scaling(args.max_triangles, args.repeat, fcl_ok, args.out, placements)
     if args.speedup_sections:
         thread_speedup(args.speedup_sections, args.repeat, rounds=5)
 
