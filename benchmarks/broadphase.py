@@ -224,7 +224,11 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str, placeme
         return
     fig, (ax, ax_ratio) = plt.subplots(1, 2, figsize=(11, 4.2))
     shown = "shift" if "shift" in placements else placements[0]
-    n, t_r, t_w, t_f = (np.array(col) for col in zip(*[r[1:] for r in rows if r[0] == shown]))
+    def curve(placement):
+        """(triangles, rigid s, world s, FCL s) arrays of one placement's rows."""
+        return (np.array(col) for col in zip(*[r[1:] for r in rows if r[0] == placement]))
+
+    n, t_r, t_w, t_f = curve(shown)
     ax.loglog(n, 1e3 * t_r, "o-", label="taichi_dcd rigid (grids built once per body)")
     ax.loglog(n, 1e3 * t_w, "^-", label="taichi_dcd world (grid built per query)")
     if fcl_ok:
@@ -236,7 +240,7 @@ def scaling(max_triangles: int, repeat: int, fcl_ok: bool, out_dir: str, placeme
     ax.legend(fontsize=8)
     if fcl_ok:
         for placement, marker in zip(placements, "osd"):
-            n, t_r, t_w, t_f = (np.array(col) for col in zip(*[r[1:] for r in rows if r[0] == placement]))
+            n, t_r, t_w, t_f = curve(placement)
             ax_ratio.semilogx(n, t_r / t_f, marker + "-", label=f"rigid, {placement}")
             ax_ratio.semilogx(n, t_w / t_f, marker + ":", alpha=0.6, label=f"world, {placement}")
         ax_ratio.axhline(1.0, color="gray", lw=1)
