@@ -6,7 +6,7 @@ import numpy as np
 import taichi as ti
 
 from ..core import runtime
-from ..core.geometry import barycentric, longest_edge_sq
+from ..core.geometry import barycentric, closest_on_segments, longest_edge_sq
 from ..core.model import SOFT, Model
 
 vec3 = ti.math.vec3
@@ -128,21 +128,66 @@ def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float,
 
 
 @ti.func
-def convex_edge_at(sim: ti.template(), t: ti.i32, x: vec3) -> vec3:
-    """The direction of the convex edge of triangle t (tri_convex_nbr) that x lies on
-    (within √eps in barycentric weight, not at a vertex); zero if none."""
+def convex_edge_of(sim: ti.template(), t: ti.i32, x: vec3):
+    """The convex edge of triangle t (tri_convex_nbr) that x lies on (within √eps in
+    barycentric weight, not at a vertex). Returns (found, its start, its end, the triangle
+    across it); the ends are t's vertices in t's order."""
     idx = sim.model.tri_indices[t]
     q = [sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]]
     bary = barycentric(x, q[0], q[1], q[2])
     tol = ti.static(ti.sqrt(runtime.machine_eps()))
     nbr = sim.tri_convex_nbr[t]
-    edge = vec3(0.0)
+    found = False
+    start, end = q[0], q[0]
+    t_across = -1
     for j in ti.static(range(3)):
         k = ti.static((j + 1) % 3)  # the edge opposite vertex j runs from vertex k to k+1
         k1 = ti.static((j + 2) % 3)
         if ti.abs(bary[j]) <= tol and bary[k] > tol and bary[k1] > tol and nbr[k] >= 0:
-            edge = q[k1] - q[k]
-    return edge
+            found = True
+            start, end, t_across = q[k], q[k1], nbr[k]
+    return found, start, end, t_across
+
+
+@ti.func
+def convex_edge_at(sim: ti.template(), t: ti.i32, x: vec3) -> vec3:
+    """The direction of the convex edge of triangle t (tri_convex_nbr) that x lies on
+    (convex_edge_of); zero if none."""
+    found, start, end, _ = convex_edge_of(sim, t, x)
+    return ti.select(found, end - start, vec3(0.0))
+
+
+@ti.func
+def in_front_of(sim: ti.template(), t: ti.i32, x: vec3) -> float:
+    """How far x lies in front of triangle t's plane along its unit normal (m; negative
+    behind it, 0 for a triangle without area)."""
+    idx = sim.model.tri_indices[t]
+    q0, q1, q2 = sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]
+    raw = (q1 - q0).cross(q2 - q0)
+    length = raw.norm()
+    ahead = 0.0
+    if length > 0.0:
+        ahead = raw.dot(x - q0) / length
+    return ahead
+
+
+@ti.func
+def edges_interlock(sim: ti.template(), t_moved: ti.i32, t_other: ti.i32, point: vec3, target: vec3,
+                    margin: float) -> bool:
+    """Whether the convex edge of t_moved at `point` and the convex edge of t_other at
+    `target` pass through each other: the midpoint of the two edge segments' closest points
+    lies behind, or no more than `margin` (m) in front of, all four faces meeting at the two
+    edges (t_moved, t_other and the triangles across their edges). True where either is no
+    convex edge (no edge-edge normal is made there anyway)."""
+    found_m, a_m, b_m, across_m = convex_edge_of(sim, t_moved, point)
+    found_o, a_o, b_o, across_o = convex_edge_of(sim, t_other, target)
+    inside = True
+    if found_m and found_o:
+        c_m, c_o = closest_on_segments(a_m, b_m, a_o, b_o)
+        mid = 0.5 * (c_m + c_o)
+        inside = (in_front_of(sim, t_moved, mid) <= margin and in_front_of(sim, across_m, mid) <= margin
+                  and in_front_of(sim, t_other, mid) <= margin and in_front_of(sim, across_o, mid) <= margin)
+    return inside
 
 
 @ti.func

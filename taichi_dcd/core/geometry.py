@@ -77,6 +77,40 @@ def lex_compare(u, v):
 
 
 @ti.func
+def closest_on_segments(p0: vec3, p1: vec3, q0: vec3, q1: vec3):
+    """The closest points (on p0-p1, on q0-q1) of two segments: minimise |p(s) - q(t)|² over
+    s, t in [0, 1], p(s) = p0 + s·(p1 - p0), q(t) = q0 + t·(q1 - q0); for parallel segments
+    s = 0 and t its best. Either segment may be a point."""
+    d_p = p1 - p0
+    d_q = q1 - q0
+    r = p0 - q0
+    a = d_p.dot(d_p)
+    e = d_q.dot(d_q)
+    b = d_p.dot(d_q)
+    c = d_p.dot(r)
+    f = d_q.dot(r)
+    s = 0.0
+    t = 0.0
+    if a <= 0.0 and e > 0.0:
+        t = ti.math.clamp(f / e, 0.0, 1.0)
+    elif a > 0.0 and e <= 0.0:
+        s = ti.math.clamp(-c / a, 0.0, 1.0)
+    elif a > 0.0:
+        den = a * e - b * b
+        if den > 0.0:
+            s = ti.math.clamp((b * f - c * e) / den, 0.0, 1.0)
+        t = (b * s + f) / e
+        # t outside [0, 1]: clamp it and take s best for the clamped t.
+        if t < 0.0:
+            t = 0.0
+            s = ti.math.clamp(-c / a, 0.0, 1.0)
+        elif t > 1.0:
+            t = 1.0
+            s = ti.math.clamp((b - c) / a, 0.0, 1.0)
+    return p0 + s * d_p, q0 + t * d_q
+
+
+@ti.func
 def barycentric(p: vec3, a: vec3, b: vec3, c: vec3) -> vec3:
     """Barycentric weights (u, v, w) of p's projection onto the plane of triangle
     (a, b, c), u·a + v·b + w·c; (1/3, 1/3, 1/3) for a zero-area triangle."""
