@@ -204,10 +204,14 @@ def _run_all_here(names, args, root) -> dict:
     return codes
 
 
-def _run_scenes_in_worker(names: list[str], args, root) -> dict:
+def _run_scenes_in_worker(names: list[str], args, root, cache_slot: int) -> dict:
     """Scenes of `run all` one after another in a worker process (spawned: a forked child of an
     initialised Taichi hangs), without progress lines; the later ones run with the kernels the
-    first compiled. Returns {name: _run_one's status}."""
+    first compiled, and the kernel cache folder `cache_slot` is tried first
+    (core.kernel_cache). Returns {name: _run_one's status}."""
+    from .core import kernel_cache
+
+    os.environ[kernel_cache.ENV_PREFERRED_SLOT] = str(cache_slot)
     args.quiet = True
     return _run_all_here(names, args, root)
 
@@ -259,7 +263,8 @@ def _run_all_in_processes(names, args, root, jobs: int) -> dict:
     codes = {}
     pool = ProcessPoolExecutor(max_workers=len(plans), mp_context=multiprocessing.get_context("spawn"))
     try:
-        futures = {pool.submit(_run_scenes_in_worker, plan, copy.copy(args), root): plan for plan in plans}
+        futures = {pool.submit(_run_scenes_in_worker, plan, copy.copy(args), root, slot): plan
+                   for slot, plan in enumerate(plans)}
         for future in as_completed(futures):
             try:
                 codes.update(future.result())

@@ -22,8 +22,10 @@ LEASE_AND_WAIT = (
 )
 
 
-def start_leaser(root: Path) -> subprocess.Popen:
-    env = {k: v for k, v in os.environ.items() if k != "TI_OFFLINE_CACHE_FILE_PATH"}
+def start_leaser(root: Path, preferred_slot: int | None = None) -> subprocess.Popen:
+    env = {k: v for k, v in os.environ.items() if k not in ("TI_OFFLINE_CACHE_FILE_PATH", "TAICHI_DCD_CACHE_SLOT")}
+    if preferred_slot is not None:
+        env["TAICHI_DCD_CACHE_SLOT"] = str(preferred_slot)
     return subprocess.Popen([sys.executable, "-c", LEASE_AND_WAIT, str(root)], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True, env=env)
 
@@ -52,6 +54,20 @@ def test_processes_side_by_side_lease_different_folders_and_later_ones_reuse_the
     later = start_leaser(tmp_path)
     assert leased(later) == "slot00"
     finish(later)
+
+
+def test_a_preferred_folder_is_leased_first_while_it_is_free(tmp_path):
+    """`run all` has its worker k try folder k first, so that the worker running the same scenes
+    finds their kernels in the same folder every run, whichever worker starts first."""
+    late_starter = start_leaser(tmp_path, preferred_slot=1)
+    try:
+        assert leased(late_starter) == "slot01"
+        # Its folder taken, a process that prefers it takes the first free one instead.
+        second = start_leaser(tmp_path, preferred_slot=1)
+        assert leased(second) == "slot00"
+        finish(second)
+    finally:
+        finish(late_starter)
 
 
 def test_a_folder_the_user_names_is_left_to_taichi(tmp_path):
