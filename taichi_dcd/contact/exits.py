@@ -150,14 +150,6 @@ def convex_edge_of(sim: ti.template(), t: ti.i32, x: vec3):
 
 
 @ti.func
-def convex_edge_at(sim: ti.template(), t: ti.i32, x: vec3) -> vec3:
-    """The direction of the convex edge of triangle t (tri_convex_nbr) that x lies on
-    (convex_edge_of); zero if none."""
-    found, start, end, _ = convex_edge_of(sim, t, x)
-    return ti.select(found, end - start, vec3(0.0))
-
-
-@ti.func
 def in_front_of(sim: ti.template(), t: ti.i32, x: vec3) -> float:
     """How far x lies in front of triangle t's plane along its unit normal (m; negative
     behind it, 0 for a triangle without area)."""
@@ -172,43 +164,46 @@ def in_front_of(sim: ti.template(), t: ti.i32, x: vec3) -> float:
 
 
 @ti.func
-def edges_interlock(sim: ti.template(), t_moved: ti.i32, t_other: ti.i32, point: vec3, target: vec3,
-                    margin: float) -> bool:
-    """Whether the convex edge of t_moved at `point` and the convex edge of t_other at
-    `target` pass through each other: the midpoint of the two edge segments' closest points
-    lies behind, or no more than `margin` (m) in front of, all four faces meeting at the two
-    edges (t_moved, t_other and the triangles across their edges). True where either is no
-    convex edge (no edge-edge normal is made there anyway)."""
-    found_m, a_m, b_m, across_m = convex_edge_of(sim, t_moved, point)
-    found_o, a_o, b_o, across_o = convex_edge_of(sim, t_other, target)
-    inside = True
-    if found_m and found_o:
-        c_m, c_o = closest_on_segments(a_m, b_m, a_o, b_o)
-        mid = 0.5 * (c_m + c_o)
-        inside = (in_front_of(sim, t_moved, mid) <= margin and in_front_of(sim, across_m, mid) <= margin
-                  and in_front_of(sim, t_other, mid) <= margin and in_front_of(sim, across_o, mid) <= margin)
-    return inside
+def edges_interlock(sim: ti.template(), a_m: vec3, b_m: vec3, faces_m: ti.math.ivec2, a_o: vec3, b_o: vec3,
+                    faces_o: ti.math.ivec2, margin: float) -> bool:
+    """Whether the edges a_m-b_m (between the triangles faces_m) and a_o-b_o (between faces_o)
+    pass through each other: the midpoint of the two segments' closest points lies behind, or
+    no more than `margin` (m) in front of, all four faces."""
+    c_m, c_o = closest_on_segments(a_m, b_m, a_o, b_o)
+    mid = 0.5 * (c_m + c_o)
+    return (in_front_of(sim, faces_m[0], mid) <= margin and in_front_of(sim, faces_m[1], mid) <= margin
+            and in_front_of(sim, faces_o[0], mid) <= margin and in_front_of(sim, faces_o[1], mid) <= margin)
 
 
 @ti.func
-def edge_edge_normal(sim: ti.template(), t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3):
+def edge_edge_normal(sim: ti.template(), t_moved: ti.i32, t_other: ti.i32, point: vec3, depth: float, normal: vec3,
+                     only_interlocked: bool, margin: float):
     """A contact whose point is an edge crossing, on a convex edge of the moved
     triangle, and whose target point + depth·normal is on a convex edge of the other, is
     two edges of the shapes meeting: it is pushed along e_m × e_o (oriented as `normal`),
     by the distance between the edge lines along it, depth·(N_ee·N). Eq. 6 gives one
     face's normal instead: a wedge leaning on a block's top edge got rows along the block's
     side and top normals from its end face, pushing it away from the block every substep,
-    and it slid down at 5.7 mm/s. Returns (depth, unit normal)."""
-    e_m = convex_edge_at(sim, t_moved, point)
-    e_o = convex_edge_at(sim, t_other, point + depth * normal)
+    and it slid down at 5.7 mm/s. With `only_interlocked`, only where the two edges pass
+    through each other (edges_interlock, within `margin` m): two skew edges far apart outside
+    both bodies are no contact of edges. Returns (depth, unit normal)."""
+    found_m, a_m, b_m, across_m = convex_edge_of(sim, t_moved, point)
+    found_o, a_o, b_o, across_o = convex_edge_of(sim, t_other, point + depth * normal)
+    e_m = ti.select(found_m, b_m - a_m, vec3(0.0))
+    e_o = ti.select(found_o, b_o - a_o, vec3(0.0))
     n_ee = e_m.cross(e_o)
     length = n_ee.norm()
     d_out, n_out = depth, normal
     if length > 1e-3 * e_m.norm() * e_o.norm():  # false when either is no edge (zero)
-        n_ee = n_ee / length
-        cos = n_ee.dot(normal)
-        if cos < 0.0:
-            n_ee, cos = -n_ee, -cos
-        if cos > 0.0:
-            d_out, n_out = depth * cos, n_ee
+        meet = True
+        if only_interlocked:
+            meet = edges_interlock(sim, a_m, b_m, ti.math.ivec2(t_moved, across_m), a_o, b_o,
+                                   ti.math.ivec2(t_other, across_o), margin)
+        if meet:
+            n_ee = n_ee / length
+            cos = n_ee.dot(normal)
+            if cos < 0.0:
+                n_ee, cos = -n_ee, -cos
+            if cos > 0.0:
+                d_out, n_out = depth * cos, n_ee
     return d_out, n_out

@@ -8,7 +8,7 @@ from ..collision.narrowphase import collide_triangle_pair
 from ..core.model import SOFT, STATIC
 from .cloth import pair_vertices
 from .anchors import approach, involves_soft, longest_edge, target_inside
-from .exits import edge_edge_normal, edges_interlock, nearest_exit
+from .exits import edge_edge_normal, nearest_exit
 from .rows import forget_rows, is_duplicate, write_contact
 from .touching import next_vertex_over_face, touching_pair_contact
 
@@ -185,7 +185,7 @@ def add_pair_contact(sim: ti.template(), rows: ti.template(), n: ti.i32, ab: ive
                 # inside the other, were held so and sank ~1 mm a second into each other.
                 if depth > max_push and target_inside(sim, t_m, point + depth * normal,
                                                       ti.select(both_moving, 0.0, max_push)):
-                    depth_ee, normal_ee = edge_edge_normal(sim, t_m, t_o, point, depth, normal)
+                    depth_ee, normal_ee = edge_edge_normal(sim, t_m, t_o, point, depth, normal, False, max_push)
                     if (normal_ee - normal).norm_sqr() > 0.0 and depth_ee > max_push:
                         crossing = True
                         depth, normal = depth_ee, normal_ee
@@ -199,7 +199,7 @@ def add_pair_contact(sim: ti.template(), rows: ti.template(), n: ti.i32, ab: ive
                 t_o, depth, normal = exit_of_moving_row(sim, t_m, t_o, point, depth, normal, both_moving)
             if ti.static(sim.rules.edge_edge_normal):
                 # A row deeper than the allowance that is no deep crossing takes the edge-edge
-                # normal only where the two edges pass through each other (edges_interlock).
+                # normal only where the two edges pass through each other (exits.edges_interlock).
                 # Prevents: a wedge lying on the ground with its ridge on a standing wedge's
                 # slanted face at its end cap; a row from the cap's bottom edge to the ridge,
                 # 1.1 m deep (two skew edges 1.1 m apart outside both bodies), turned 2.5°
@@ -208,9 +208,8 @@ def add_pair_contact(sim: ti.template(), rows: ti.template(), n: ti.i32, ab: ive
                 # crossings too, it refused a spike's edge passing its apex into a wedge
                 # beside the ridge, whose rows then left through a neighbour face (the spike
                 # landed 2.8 mm deep).
-                if crossing or depth <= max_push or edges_interlock(sim, t_m, t_o, point, point + depth * normal,
-                                                                    max_push):
-                    depth, normal = edge_edge_normal(sim, t_m, t_o, point, depth, normal)
+                depth, normal = edge_edge_normal(sim, t_m, t_o, point, depth, normal,
+                                                 not crossing and depth > max_push, max_push)
             touching = only_touches(sim, t_m, depth, both_moving)
         elif ti.static(sim.rules.nearest_exit):
             # A soft triangle deeper than the allowance in a rigid or static face leaves through

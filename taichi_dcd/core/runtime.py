@@ -81,8 +81,8 @@ def init(
         kwargs["device_memory_GB"] = CUDA_POOL_GB
     if offline_cache:
         kwargs["offline_cache_max_size_of_files"] = OFFLINE_CACHE_BYTES
-    if offline_cache and (folder := kernel_cache.leased_folder()) is not None:
-        kwargs["offline_cache_file_path"] = folder
+        if (folder := kernel_cache.leased_folder()) is not None:
+            kwargs["offline_cache_file_path"] = folder
     frontend.speed_up()
     traced_ops.install()
     ti.init(**kwargs)
