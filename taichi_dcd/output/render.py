@@ -115,7 +115,9 @@ def raster_triangle(key: ti.template(), a, b, c, t: ti.i32):
                 if w0 >= 0.0 and w1 >= 0.0 and w2 >= 0.0:
                     z = ti.math.clamp(w0 * a.z + w1 * b.z + w2 * c.z, 0.0, 1.0)
                     q = ti.cast(z * DEPTH_LEVELS, ti.i64)  # z in [0, 1] -> 31 bits
-                    ti.atomic_min(key[y, x], (q << 32) | ti.cast(t, ti.i64))
+                    k = (q << 32) | ti.cast(t, ti.i64)
+                    if k < key[y, x]:  # a plain read first: most covered pixels are already nearer
+                        ti.atomic_min(key[y, x], k)
 
 
 @ti.data_oriented
@@ -128,16 +130,21 @@ class Rasterizer:
         self.width, self.height = int(width), int(height)
         self.key = ti.field(ti.i64, shape=(self.height, self.width))
         self.background = ti.Vector(list(BACKGROUND), ti.i32)
+        self._clear()
+
+    @ti.kernel
+    def _clear(self):
+        for i, j in self.key:
+            self.key[i, j] = ti.i64(NO_HIT)
 
     @ti.kernel
     def _draw(self, n: ti.i32, screen: ti.types.ndarray(dtype=ti.math.vec3, ndim=1),
               tri_rgb: ti.types.ndarray(dtype=ti.types.vector(3, ti.u8), ndim=1),
               image: ti.types.ndarray(dtype=ti.types.vector(3, ti.u8), ndim=2),
               background: ti.types.vector(3, ti.i32)):
-        """Clear the keys, rasterise n triangles, then colour each pixel by its key: three
-        loops, each finished before the next starts, in one launch."""
-        for i, j in self.key:
-            self.key[i, j] = ti.i64(NO_HIT)
+        """Rasterise n triangles, then colour each pixel by its key and clear the key for the
+        next frame (the keys start cleared, _clear): two loops, the first finished before the
+        second starts, in one launch."""
         for t in range(n):
             raster_triangle(self.key, screen[3 * t], screen[3 * t + 1], screen[3 * t + 2], t)
         for i, j in self.key:
@@ -146,14 +153,20 @@ class Rasterizer:
                 image[i, j] = ti.cast(background, ti.u8)
             else:
                 image[i, j] = tri_rgb[ti.cast(k & ti.i64(0xFFFFFFFF), ti.i32)]
+                self.key[i, j] = ti.i64(NO_HIT)
 
     def render(self, vertices: np.ndarray, faces: np.ndarray, face_rgb: np.ndarray, camera: Camera,
-               points: np.ndarray | None = None, point_rgb=CONTACT_COLOR, point_size: int = 5) -> np.ndarray:
+               points: np.ndarray | None = None, point_rgb=CONTACT_COLOR, point_size: int = 5,
+               one_sided: np.ndarray | None = None) -> np.ndarray:
         """Image (height, width, 3) uint8 of the triangles vertices[faces] ((n, 3) m, (m, 3)
         int) with base colours face_rgb (m, 3) flat-shaded, seen by `camera`; `points`
-        (k, 3) m are drawn on top as squares of point_size pixels."""
+        (k, 3) m are drawn on top as squares of point_size pixels. Faces marked in
+        one_sided (m,) bool belong to closed, outward-oriented surfaces that keep their shape:
+        they are left out when they face away from the camera (never seen: a front face of
+        the same body lies nearer)."""
         tris, rgb = project_and_shade(np.asarray(vertices, np.float64), np.asarray(faces, np.int64),
-                                      np.asarray(face_rgb, np.float64), camera, self.width, self.height)
+                                      np.asarray(face_rgb, np.float64), camera, self.width, self.height,
+                                      one_sided)
         # NumPy arrays go to the kernel as they are (on the CPU it reads and writes them in
         # place): copying them into Taichi's arrays and back took three launches more.
         screen = np.ascontiguousarray(tris.reshape(-1, 3), runtime.real_dtype())
@@ -183,15 +196,18 @@ def project_points(points: np.ndarray, camera: Camera, width: int, height: int) 
     return np.stack([sx, sy, z], axis=1)
 
 
-def project_and_shade(vertices, faces, face_rgb, camera: Camera, width: int, height: int):
+def project_and_shade(vertices, faces, face_rgb, camera: Camera, width: int, height: int, one_sided=None):
     """Triangles clipped at the near plane and projected to (k, 3, 3) screen x, y and
-    depth 1 − near/z in [0, 1), with their flat-shaded colours (k, 3) uint8."""
+    depth 1 − near/z in [0, 1), with their flat-shaded colours (k, 3) uint8; faces marked in
+    one_sided (m,) bool are left out where they face away from the eye."""
     if len(faces) == 0:
         return np.zeros((0, 3, 3)), np.zeros((0, 3), np.uint8)
     tri = vertices[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1)
     keep = length > 0
+    if one_sided is not None:
+        keep &= ~(np.asarray(one_sided, bool) & (np.einsum("ij,ij->i", normal, tri[:, 0] - camera.eye) >= 0.0))
     tri, normal, base = tri[keep], normal[keep] / length[keep, None], face_rgb[keep]
     right, up, forward = camera.basis()
     light = -forward + 0.6 * up - 0.4 * right

@@ -111,6 +111,9 @@ class FrameWriter:
         colors = body_colors([b.kind for b in bodies])
         self.faces = np.concatenate([b.faces + b.vertex_start for b in bodies])
         self.face_rgb = np.concatenate([np.tile(colors[k], (b.tri_count, 1)) for k, b in enumerate(bodies)])
+        # Rigid and static bodies are closed and outward-oriented (scene.mesh_check) and keep
+        # their shape, so their faces turned away are never seen; soft ones may fold over.
+        self.one_sided = np.concatenate([np.full(b.tri_count, b.kind in ("rigid", "static")) for b in bodies])
         x = scene.vertices()
         boxes = [(x[b.vertex_start:b.vertex_start + b.vertex_count].min(axis=0),
                   x[b.vertex_start:b.vertex_start + b.vertex_count].max(axis=0)) for b in bodies]
@@ -131,7 +134,8 @@ class FrameWriter:
         from .render import write_png
 
         points = self.scene.contact_points() if self.contacts else None
-        image = self.rasterizer.render(vertices, self.faces, self.face_rgb, self.camera, points)
+        image = self.rasterizer.render(vertices, self.faces, self.face_rgb, self.camera, points,
+                                       one_sided=self.one_sided)
         path = self.dir / f"frame_{self.count:05d}.png"
         tmp = path.with_name(path.name + ".tmp")  # an interrupt never leaves half a PNG
         try:
