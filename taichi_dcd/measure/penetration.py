@@ -41,7 +41,7 @@ def _manifold(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray):
 
     mesh = manifold3d.Mesh64(vert_properties=np.ascontiguousarray(vertices - origin, np.float64),
                              tri_verts=np.ascontiguousarray(faces, np.uint64))
-    return manifold3d.Manifold(mesh)
+    return manifold3d.Manifold(mesh).as_original()
 
 
 def boxes_apart(a: trimesh.Trimesh, b: trimesh.Trimesh) -> bool:
@@ -49,19 +49,31 @@ def boxes_apart(a: trimesh.Trimesh, b: trimesh.Trimesh) -> bool:
     return bool(np.any(np.maximum(a.bounds[0], b.bounds[0]) > np.minimum(a.bounds[1], b.bounds[1])))
 
 
-def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, float]:
+def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh, with_sides: bool = False):
     """The solid A ∩ B as (vertices (n, 3), faces (m, 3), volume m³); empty when they do not
-    overlap. Coordinates are shifted to the boxes' common centre for the boolean, so that
-    large offsets do not cost precision."""
+    overlap. With `with_sides`, also (m,) int8: 0 for a face on A's surface, 1 on B's, -1
+    where the boolean does not say. Coordinates are shifted to the boxes' common centre for
+    the boolean, so that large offsets do not cost precision."""
     if boxes_apart(a, b):
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), 0.0
+        empty = (np.zeros((0, 3)), np.zeros((0, 3), np.int64), 0.0)
+        return (*empty, np.zeros(0, np.int8)) if with_sides else empty
     origin = 0.5 * (np.maximum(a.bounds[0], b.bounds[0]) + np.minimum(a.bounds[1], b.bounds[1]))
-    solid = _manifold(np.asarray(a.vertices), np.asarray(a.faces), origin) ^ \
-        _manifold(np.asarray(b.vertices), np.asarray(b.faces), origin)
+    solid_a = _manifold(np.asarray(a.vertices), np.asarray(a.faces), origin)
+    solid_b = _manifold(np.asarray(b.vertices), np.asarray(b.faces), origin)
+    solid = solid_a ^ solid_b
     out = solid.to_mesh64()
     v = np.asarray(out.vert_properties, np.float64)[:, :3] + origin
     f = np.asarray(out.tri_verts, np.int64).reshape(-1, 3)
-    return v, f, max(float(solid.volume()), 0.0)
+    volume = max(float(solid.volume()), 0.0)
+    if not with_sides:
+        return v, f, volume
+    # The boolean keeps, for each run of output triangles, the id of the input it came from.
+    side = np.full(len(f), -1, np.int8)
+    starts, ids = np.asarray(out.run_index, np.int64) // 3, np.asarray(out.run_original_id, np.int64)
+    for k, run_id in enumerate(ids):
+        if run_id in (solid_a.original_id(), solid_b.original_id()):
+            side[starts[k]:starts[k + 1]] = 0 if run_id == solid_a.original_id() else 1
+    return v, f, volume, side
 
 
 def surface_samples(vertices: np.ndarray, faces: np.ndarray,
@@ -204,39 +216,49 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
     grid's `refine` deepest face points are then refined twice on an 8× finer local grid,
     so that a deepest point between grid points (a ridge crossing) is found to ~1/64 of
     the grid spacing."""
-    v, f, volume = overlap(a, b)
+    v, f, volume, side = overlap(a, b, with_sides=True)
     if len(f) == 0:
         return 0.0, 0.0
 
-    def depth_at(points):
-        # A point of I's boundary is on one surface (distance ~0 to it) and `depth` from the other.
-        return np.maximum(distance_to_surface(points, a), distance_to_surface(points, b))
+    def depth_at(points, sides):
+        # A point of I's boundary is on one surface (distance ~0 to it) and `depth` from the
+        # other: a point of a face of I on A's surface is measured against B's alone, and the
+        # reverse; I's vertices (on the curve where the surfaces cross, or on either) and faces
+        # the boolean does not attribute, against both.
+        depth = np.zeros(len(points))
+        for on, others in ((0, (b,)), (1, (a,)), (-1, (a, b))):
+            at = sides == on
+            if at.any():
+                depth[at] = np.max([distance_to_surface(points[at], m) for m in others], axis=0)
+        return depth
 
     points, face, step = surface_samples(v, f)
-    depth = depth_at(points)
+    point_side = np.where(face >= 0, side[np.maximum(face, 0)], -1)
+    depth = depth_at(points, point_side)
     best = float(depth.max())
     tri = v[f]
     # Each of the deepest face points is refined on its own local grid, twice; the grids of
     # one level are measured in one batch (a point's distance does not depend on the batch).
-    refining = []  # (triangle (3, 3), centre (u, v), spacing)
+    refining = []  # (triangle (3, 3), centre (u, v), spacing, side)
     for k in np.argsort(depth)[::-1][:refine]:
         if face[k] >= 0 and (centre := _barycentric_uv(tri[face[k]], points[k])) is not None:
-            refining.append((tri[face[k]], centre, step[k]))
+            refining.append((tri[face[k]], centre, step[k], point_side[k]))
     for _ in range(2):
         grids = []
-        for t, centre, h in refining:
+        for t, centre, h, on in refining:
             offsets = np.linspace(-h, h, 9)
             uv = (centre[None] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), -1).reshape(-1, 2))
             uv = uv[(uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv.sum(axis=1) <= 1)]
             if len(uv):
-                grids.append((t, uv, h))
+                grids.append((t, uv, h, on))
         if not grids:
             break
-        d_all = depth_at(np.concatenate([_on_faces(t[None], uv)[0] for t, uv, _ in grids]))
+        d_all = depth_at(np.concatenate([_on_faces(t[None], uv)[0] for t, uv, _, _ in grids]),
+                         np.concatenate([np.full(len(uv), on, np.int8) for _, uv, _, on in grids]))
         best = max(best, float(d_all.max()))
-        ends = np.cumsum([len(uv) for _, uv, _ in grids])
-        refining = [(t, uv[int(np.argmax(d))], h / 8)
-                    for (t, uv, h), d in zip(grids, np.split(d_all, ends[:-1]))]
+        ends = np.cumsum([len(uv) for _, uv, _, _ in grids])
+        refining = [(t, uv[int(np.argmax(d))], h / 8, on)
+                    for (t, uv, h, on), d in zip(grids, np.split(d_all, ends[:-1]))]
     return best, volume
 
 

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from taichi_dcd.scene import shapes
-from taichi_dcd.measure.penetration import distance_to_surface, pair_penetration, scene_penetration
+from taichi_dcd.measure.penetration import distance_to_surface, overlap, pair_penetration, scene_penetration
 from taichi_dcd.scene.scene import rotation_matrix
 
 
@@ -85,6 +85,26 @@ def test_crossed_ridges_give_the_depth_of_the_ridge_inside_the_other_wedge():
     depth, volume = pair_penetration(lower, upper)
     assert depth == pytest.approx(0.01 * math.sin(math.atan(0.5 / 3.0)), rel=1e-6)
     assert 0 < volume < 1e-6
+
+
+@pytest.mark.parametrize("order", ["spike, block", "block, spike"])
+def test_overlap_faces_are_told_to_the_surface_they_lie_on(order):
+    """Each face of A ∩ B is attributed to the surface it lies on (its centroid within rounding
+    of that body's surface and inside the other body by the depth), so the measure takes each
+    face point's depth from the other body alone."""
+    block = placed(shapes.box((2.0, 1.0, 2.0)), position=(0.0, -0.5, 0.0))
+    spike = placed(shapes.spike(), (180.0, 0.0, 0.0), (0.1, 3.0 - 0.01, 0.05))
+    a, b = (spike, block) if order == "spike, block" else (block, spike)
+    v, f, volume, side = overlap(a, b, with_sides=True)
+    assert len(f) > 0 and set(np.unique(side)) == {0, 1}
+    centroids = v[f].mean(axis=1)
+    for on, own, other in ((0, a, b), (1, b, a)):
+        at = side == on
+        assert distance_to_surface(centroids[at], own).max() < 1e-12
+        assert distance_to_surface(centroids[at], other).max() <= 0.01 + 1e-12
+    # The apex's faces lie on the spike; the block's top face, cut to the tip's section, on the block.
+    on_block = side == (1 if a is spike else 0)
+    assert np.allclose(centroids[on_block][:, 1], 0.0, atol=1e-12)
 
 
 @pytest.mark.parametrize("gap", [0.0, 1e-9, 1e-3])
