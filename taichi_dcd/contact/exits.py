@@ -81,6 +81,38 @@ def convex_neighbours(model: Model, vertex_x: np.ndarray) -> np.ndarray:
 
 
 @ti.func
+def behind_plane(sim: ti.template(), t: ti.i32, point: vec3):
+    """How far `point` lies behind triangle t's plane (m, along its unit normal; negative in
+    front). Returns (whether t has area, its unit normal, that distance, the rounding floor
+    below which the sign means nothing: the tolerance times t's longest edge)."""
+    tol = ti.static(runtime.tolerance())
+    idx = sim.model.tri_indices[t]
+    q0, q1, q2 = sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]
+    raw = (q1 - q0).cross(q2 - q0)
+    length = raw.norm()
+    has_area = length > 0.0
+    n_t = raw / ti.select(has_area, length, 1.0)
+    d = n_t.dot(q0 - point)
+    floor = tol * ti.sqrt(longest_edge_sq(q0, q1, q2))
+    return has_area, n_t, d, floor
+
+
+@ti.func
+def beyond_convex_edge(sim: ti.template(), t: ti.i32, point: vec3) -> bool:
+    """Whether `point` lies in front of the plane of a convex neighbour of triangle t
+    (tri_convex_nbr) by more than rounding: outside t's body past that edge, however far
+    behind t's own plane it is."""
+    beyond = False
+    nbr = sim.tri_convex_nbr[t]
+    for k in ti.static(range(3)):
+        if nbr[k] >= 0:
+            has_area, _, d, floor = behind_plane(sim, nbr[k], point)
+            if has_area and d < -floor:
+                beyond = True
+    return beyond
+
+
+@ti.func
 def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float, normal: vec3, may_hold: bool,
                  exit_first: bool):
     """The face a contact's point leaves the other body through: t_other's plane, where
@@ -96,7 +128,6 @@ def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float,
     normal at depth 0, holding the point there; with `exit_first`, only if no neighbour is
     an exit. Returns (triangle, depth, unit normal, whether the point is held on the
     surface)."""
-    tol = ti.static(runtime.tolerance())
     t_best, d_best, n_best = t_other, depth, normal
     on_surface = False
     t_surface, n_surface = t_other, normal
@@ -104,17 +135,11 @@ def nearest_exit(sim: ti.template(), t_other: ti.i32, point: vec3, depth: float,
     for k in ti.static(range(3)):
         t = nbr[k]
         if t >= 0:
-            idx = sim.model.tri_indices[t]
-            q0, q1, q2 = sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]
-            raw = (q1 - q0).cross(q2 - q0)
-            length = raw.norm()
-            if length > 0.0:
-                n_t = raw / length
-                d = n_t.dot(q0 - point)
+            has_area, n_t, d, floor = behind_plane(sim, t, point)
+            if has_area:
                 # A point on the neighbour's plane up to rounding (coplanar faces: the
                 # end faces of the parallel wedges) is not nearer it: which sign rounding
                 # gives differs when the scene is scaled or moved.
-                floor = tol * ti.sqrt(longest_edge_sq(q0, q1, q2))
                 if d > floor and d < NEAREST_EXIT_FRACTION * depth and d < d_best:
                     t_best, d_best, n_best = t, d, n_t
                 elif ti.abs(d) <= floor and not on_surface and may_hold:

@@ -6,8 +6,9 @@ import taichi as ti
 from ..core import runtime
 from ..core.geometry import barycentric
 from ..core.model import SOFT
-from .anchors import anchor_world
+from .anchors import anchor_world, involves_soft
 from .cloth import facing_against
+from .exits import beyond_convex_edge
 from .rows import is_duplicate, write_contact
 
 vec3 = ti.math.vec3
@@ -46,7 +47,14 @@ def add_vertex_contacts(sim: ti.template(), rows: ti.template(), n: ti.i32, max_
     triangle that is one of its candidate points too (behind the other triangle's plane along
     N, no deeper than the row's C, projecting inside the other triangle) becomes a row with
     its own depth. Prevents: Eq. 6 keeps only the deepest candidate, so a face resting on a
-    face hangs on one corner per triangle pair and tilts into the support.
+    face hangs on one corner per triangle pair and tilts into the support. Between rigid or
+    static bodies, not a vertex beyond a convex edge of the other triangle (in front of a
+    convex neighbour's plane: outside that body, contact.exits.beyond_convex_edge). Prevents:
+    a wedge dropped turned 4.9° onto a standing wedge's ridge slid along it; the standing
+    ridge's end vertex, 3.8 cm outside the dropped wedge beyond its ridge but 0.13 m behind
+    its far face, got a row along that face's normal, and the pushes drove the dropped wedge
+    sideways through the standing one, 4.5 cm deep (benchmarks/variants.py --seed 7, wedges
+    v0).
 
     Rule `soft_feature_rows`: when the moved triangle is soft, the other triangle's vertices
     behind it (within half the soft body's thickness) get rows too. Prevents: a membrane
@@ -63,9 +71,15 @@ def add_vertex_contacts(sim: ti.template(), rows: ti.template(), n: ti.i32, max_
         depth_main = normal.dot(p_o - p_m)
         im, io = sim.model.tri_indices[tri[0]], sim.model.tri_indices[tri[1]]
         if ti.static(sim.rules.vertex_rows):
+            rigid_pair = not involves_soft(sim, tri[0], tri[1])
             for k in ti.static(range(3)):
-                total = vertex_over_face(sim, rows, total, tri[0], tri[1], sim.state.vertex_x[im[k]], normal, 0.0,
-                                         depth_main * (1.0 + tol), max_push)
+                v = sim.state.vertex_x[im[k]]
+                take = True
+                if rigid_pair:
+                    take = not beyond_convex_edge(sim, tri[1], v)
+                if take:
+                    total = vertex_over_face(sim, rows, total, tri[0], tri[1], v, normal, 0.0,
+                                             depth_main * (1.0 + tol), max_push)
         # A soft triangle moved along a sharp feature's face normal can slide off the
         # feature sideways while the feature's vertex stays inside it: the membrane
         # wraps a spike's apex. The other triangle's vertices behind the soft one's

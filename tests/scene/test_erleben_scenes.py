@@ -83,3 +83,25 @@ def test_frames_are_rendered_and_identical_for_identical_runs(f64, tmp_path):
     for f in frames:
         assert f.read_bytes() == (tmp_path / "b" / "frames" / f.name).read_bytes()
     assert (tmp_path / "a" / "animation.gif").stat().st_size > 0
+
+
+def test_wedge_dropped_turned_stays_out_of_the_standing_ridge(f64_scene, tmp_path):
+    """`wedges` with the dropped wedge turned 4.9° about the vertical, 1.5 cm off along the
+    ridge and 5.8 cm higher (`benchmarks/variants.py --seed 7`, wedges v0) passes like the
+    scene itself. It balances on the crossing ridges, pitches and slides along the standing
+    ridge; before vertex rows beyond a convex edge of the other body were left out
+    (contact.vertex_rows), the standing ridge's end vertex, outside the dropped wedge, pushed
+    it sideways through the standing wedge, 4.5 cm deep at 1.39 s."""
+    from dataclasses import replace
+
+    from taichi_dcd.output.run import run_scene
+    from taichi_dcd.scene.builtin import scene_config
+    from taichi_dcd.scene.scene import Scene
+
+    config = scene_config("wedges")
+    k = [b.name for b in config.bodies].index("dropped_wedge")
+    config.bodies[k] = replace(config.bodies[k], rotation=(180.0, -4.882059744574941, 0.0),
+                               position=(0.009812406123610255, 3.057820643195593, -0.01514910467836015))
+    metrics = run_scene(Scene(config), tmp_path, progress=None, notices=None)
+    assert metrics["complete"] and not metrics["nan_detected"]
+    assert verdict(metrics) is None, verdict(metrics)
