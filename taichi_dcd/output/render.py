@@ -116,7 +116,7 @@ def raster_triangle(key: ti.template(), a, b, c, t: ti.i32):
                     z = ti.math.clamp(w0 * a.z + w1 * b.z + w2 * c.z, 0.0, 1.0)
                     q = ti.cast(z * DEPTH_LEVELS, ti.i64)  # z in [0, 1] -> 31 bits
                     k = (q << 32) | ti.cast(t, ti.i64)
-                    if k < key[y, x]:  # a plain read first: most covered pixels are already nearer
+                    if k < key[y, x]:  # a plain read first: the atomic only where this triangle is nearer
                         ti.atomic_min(key[y, x], k)
 
 
