@@ -178,14 +178,8 @@ def convex_edge_of(sim: ti.template(), t: ti.i32, x: vec3):
 def in_front_of(sim: ti.template(), t: ti.i32, x: vec3) -> float:
     """How far x lies in front of triangle t's plane along its unit normal (m; negative
     behind it, 0 for a triangle without area)."""
-    idx = sim.model.tri_indices[t]
-    q0, q1, q2 = sim.state.vertex_x[idx[0]], sim.state.vertex_x[idx[1]], sim.state.vertex_x[idx[2]]
-    raw = (q1 - q0).cross(q2 - q0)
-    length = raw.norm()
-    ahead = 0.0
-    if length > 0.0:
-        ahead = raw.dot(x - q0) / length
-    return ahead
+    has_area, _, behind, _ = behind_plane(sim, t, x)
+    return ti.select(has_area, -behind, 0.0)
 
 
 @ti.func

@@ -49,14 +49,13 @@ def boxes_apart(a: trimesh.Trimesh, b: trimesh.Trimesh) -> bool:
     return bool(np.any(np.maximum(a.bounds[0], b.bounds[0]) > np.minimum(a.bounds[1], b.bounds[1])))
 
 
-def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh, with_sides: bool = False):
-    """The solid A ∩ B as (vertices (n, 3), faces (m, 3), volume m³); empty when they do not
-    overlap. With `with_sides`, also (m,) int8: 0 for a face on A's surface, 1 on B's, -1
-    where the boolean does not say. Coordinates are shifted to the boxes' common centre for
-    the boolean, so that large offsets do not cost precision."""
+def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """The solid A ∩ B as (vertices (n, 3), faces (m, 3), volume m³, side (m,) int8: 0 for a
+    face on A's surface, 1 on B's, -1 where the boolean does not say); empty when they do not
+    overlap. Coordinates are shifted to the boxes' common centre for the boolean, so that
+    large offsets do not cost precision."""
     if boxes_apart(a, b):
-        empty = (np.zeros((0, 3)), np.zeros((0, 3), np.int64), 0.0)
-        return (*empty, np.zeros(0, np.int8)) if with_sides else empty
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), 0.0, np.zeros(0, np.int8)
     origin = 0.5 * (np.maximum(a.bounds[0], b.bounds[0]) + np.minimum(a.bounds[1], b.bounds[1]))
     solid_a = _manifold(np.asarray(a.vertices), np.asarray(a.faces), origin)
     solid_b = _manifold(np.asarray(b.vertices), np.asarray(b.faces), origin)
@@ -65,8 +64,6 @@ def overlap(a: trimesh.Trimesh, b: trimesh.Trimesh, with_sides: bool = False):
     v = np.asarray(out.vert_properties, np.float64)[:, :3] + origin
     f = np.asarray(out.tri_verts, np.int64).reshape(-1, 3)
     volume = max(float(solid.volume()), 0.0)
-    if not with_sides:
-        return v, f, volume
     # The boolean keeps, for each run of output triangles, the id of the input it came from.
     side = np.full(len(f), -1, np.int8)
     starts, ids = np.asarray(out.run_index, np.int64) // 3, np.asarray(out.run_original_id, np.int64)
@@ -216,7 +213,7 @@ def pair_penetration(a: trimesh.Trimesh, b: trimesh.Trimesh, refine: int = REFIN
     grid's `refine` deepest face points are then refined twice on an 8× finer local grid,
     so that a deepest point between grid points (a ridge crossing) is found to ~1/64 of
     the grid spacing."""
-    v, f, volume, side = overlap(a, b, with_sides=True)
+    v, f, volume, side = overlap(a, b)
     if len(f) == 0:
         return 0.0, 0.0
 

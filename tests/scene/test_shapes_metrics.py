@@ -95,7 +95,7 @@ def test_overlap_faces_are_told_to_the_surface_they_lie_on(order):
     block = placed(shapes.box((2.0, 1.0, 2.0)), position=(0.0, -0.5, 0.0))
     spike = placed(shapes.spike(), (180.0, 0.0, 0.0), (0.1, 3.0 - 0.01, 0.05))
     a, b = (spike, block) if order == "spike, block" else (block, spike)
-    v, f, volume, side = overlap(a, b, with_sides=True)
+    v, f, volume, side = overlap(a, b)
     assert len(f) > 0 and set(np.unique(side)) == {0, 1}
     centroids = v[f].mean(axis=1)
     for on, own, other in ((0, a, b), (1, b, a)):
