@@ -9,7 +9,10 @@ grids that hold them, are built once and reused by every query (collision/rigid_
   cell) with tag = body·LEVELS + level, sit in an open-addressing table, each with its run
   of box indices;
 - `Occupancy`, a summed-volume table per body of the cells its boxes cover, which answers
-  "does this box come near the body at all" in eight reads.
+  "does this box come near the body at all" in eight reads;
+- `cell_slabs`, for each occupied cell of a `LocalGrid`, the slab between two parallel planes
+  that holds all its triangles: a triangle wholly outside a cell's slab meets none of them,
+  whatever their boxes say.
 
 A box's cells are computed by the same `ti.func`s the query uses (`cell_of`, `bucket_of`),
 so that its cells at build time are its cells at query time to the bit.
@@ -184,6 +187,11 @@ class LocalGrid:
         np.bitwise_or.at(masks, body, np.int64(1) << level.astype(np.int64))
         self.body_levels = to_ndarray(ti.i32, masks.astype(np.uint32).view(np.int32))
         self.level = level
+        self.items = all_items
+        # Each occupied cell's run [start, end) of cell_items, in cell_items order.
+        dense_runs = np.column_stack([dense_start[:-1], dense_start[1:]])
+        runs = np.concatenate([dense_runs[dense_runs[:, 1] > dense_runs[:, 0]], ranges.reshape(-1, 2)])
+        self.runs = runs[np.argsort(runs[:, 0], kind="stable")].astype(np.int64)
 
     def arrays(self) -> tuple:
         """The arrays `cell_run` reads, in its order."""
@@ -239,6 +247,45 @@ def cell_run(body: ti.i32, level: ti.i32, c: ivec3, grid: ti.template()) -> ivec
     else:
         run = hashed_run(body * LEVELS + level, c, cell_key, cell_range)
     return run
+
+
+def cell_slabs(grid: LocalGrid, vertices: np.ndarray, tri_indices: np.ndarray,
+               pad: np.ndarray) -> tuple[ti.Ndarray, ti.Ndarray]:
+    """Each occupied cell's slab: a unit normal n (the area-weighted mean of its triangles'
+    normals) and the interval [lo, hi] of n·x over its triangles' vertices, widened by the
+    largest `pad` (n,) of its triangles (the narrow phase's touching tolerance, as the boxes
+    are padded) and rounded outwards to f32. Stored at the position of the cell's first entry
+    in `cell_items` (the run start `cell_run` returns): `slab_normal` (n_entries,) vec3 f32,
+    `slab_range` (n_entries,) vec2 f32. A cell whose normals cancel (a thin plate's two faces)
+    gets the interval (-inf, inf): it turns nothing away.
+
+    vertices (v, 3) float64 in the bodies' own frames; tri_indices (t, 3); pad (t,) scene units."""
+    n_entries = max(len(grid.items), 1)
+    normal_out = np.zeros((n_entries, 3), np.float32)
+    range_out = np.zeros((n_entries, 2), np.float32)
+    runs = grid.runs
+    if len(runs):
+        corners = np.asarray(vertices, np.float64)[np.asarray(tri_indices)]
+        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        items = grid.items
+        starts = runs[:, 0]
+        summed = np.add.reduceat(cross[items], starts, axis=0)
+        spread = np.add.reduceat(np.linalg.norm(cross[items], axis=1), starts)
+        length = np.linalg.norm(summed, axis=1)
+        # Normals that mostly cancel give a slab as thick as the cell: not worth a test.
+        flat = length > 0.5 * spread
+        unit = np.where(flat[:, None], summed / np.where(length > 0, length, 1.0)[:, None], 0.0).astype(np.float32)
+        run_of = np.repeat(np.arange(len(runs)), runs[:, 1] - runs[:, 0])
+        n_entry = unit[run_of].astype(np.float64)
+        along = np.einsum("ekd,ed->ek", corners[items], n_entry)
+        lo = np.minimum.reduceat(along.min(axis=1) - pad[items], starts)
+        hi = np.maximum.reduceat(along.max(axis=1) + pad[items], starts)
+        lo32 = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+        hi32 = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+        lo32[~flat], hi32[~flat] = -np.inf, np.inf
+        normal_out[starts] = unit
+        range_out[starts, 0], range_out[starts, 1] = lo32, hi32
+    return (to_ndarray(ti.types.vector(3, ti.f32), normal_out), to_ndarray(ti.types.vector(2, ti.f32), range_out))
 
 
 def to_ndarray(dtype, values) -> ti.Ndarray:

@@ -13,8 +13,11 @@ body's frame at a time (body Q's triangles against body T's):
 2. each triangle of a kept cluster is carried into T's frame, tested against T's occupancy
    again, and looks up T's grid at the levels of T's triangles at least as coarse as its own
    (strictly coarser when T's triangles query Q's, so that each pair is looked up from one
-   side), reporting a pair in the one cell that holds the lower corner of the two boxes'
-   intersection, as the world grid does;
+   side), passing over each cell whose slab (the two planes its triangles lie between,
+   local_grid.cell_slabs) the triangle lies wholly outside, and reporting a pair in the one
+   cell that holds the lower corner of the two boxes' intersection, as the world grid does;
+   where the surfaces run side by side a few cells apart (two tori on one axis), the boxes
+   meet everywhere and the slabs turn the cells away;
 3. the candidate pairs go through the unified narrow phase in world coordinates.
 
 It is exact like the world grid (every intersecting pair, once): boxes are padded by the
@@ -31,7 +34,7 @@ from ..core.launch import Launcher
 from .broadphase import BOX_SLACK, default_cell_size, ivec2
 from .contacts import Contacts, append_contact
 from .grid_cells import LEVELS, boxes_overlap, cell_of, level_inv_h
-from .local_grid import LocalGrid, Occupancy, box_occupied, cell_run, to_ndarray
+from .local_grid import LocalGrid, Occupancy, box_occupied, cell_run, cell_slabs, to_ndarray
 from .narrowphase import collide_triangle_pair
 from .pipeline import check_mesh
 
@@ -86,7 +89,7 @@ def next_chunk(counts: ti.template(), which: ti.template(), n_chunks: ti.i32) ->
 @ti.func
 def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round_pad: float, levels: ti.i32,
                 vert_local: ti.template(), tri: ti.template(), grid: ti.template(), cell_items: ti.template(),
-                entry_box: ti.template(),
+                entry_box: ti.template(), slab_normal: ti.template(), slab_range: ti.template(),
                 occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
                 occ_table: ti.template(), pairs: ti.template(), region: ti.i32, room: ti.i32, n_found: ti.i32,
                 inv_h0: float) -> ti.i32:
@@ -96,7 +99,9 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
     region of `pairs` (room slots from region; n_found already there; returns the new count,
     which may pass room: the caller then grows the regions), but those whose
     T triangle lies wholly on one side of a's plane by more than rounding can move it (no
-    straddle: Möller's test, the narrow phase's first, would turn them away)."""
+    straddle: Möller's test, the narrow phase's first, would turn them away). A cell whose
+    slab (local_grid.cell_slabs) a lies wholly outside, by its pad and more than rounding, is
+    passed over whole: a plane then parts a from each of its triangles."""
     body_t = info[1]
     p0 = rot @ vert_local[ia[0]] + shift
     p1 = rot @ vert_local[ia[1]] + shift
@@ -125,6 +130,15 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                     for y in range(c0[1], c1[1] + 1):
                         for z in range(c0[2], c1[2] + 1):
                             run = cell_run(body_t, level, ivec3(x, y, z), grid)
+                            if run[1] > run[0]:
+                                n_c = ti.cast(slab_normal[run[0]], float)
+                                d_c = ti.cast(slab_range[run[0]], float)
+                                s0 = n_c.dot(p0)
+                                s1 = n_c.dot(p1)
+                                s2 = n_c.dot(p2)
+                                reach = pad + plane_margin
+                                if ti.min(s0, s1, s2) - reach > d_c[1] or ti.max(s0, s1, s2) + reach < d_c[0]:
+                                    run[1] = run[0]
                             for f in range(run[0], run[1]):
                                 lo_b = ti.cast(entry_box[f, 0], float)
                                 if boxes_overlap(lo, hi, lo_b, ti.cast(entry_box[f, 1], float)):
@@ -168,6 +182,8 @@ def _rigid_query(
     cell_range: ti.types.ndarray(dtype=ivec2, ndim=1),
     cell_items: ti.types.ndarray(dtype=ti.i32, ndim=1),
     entry_box: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2),
+    slab_normal: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=1),
+    slab_range: ti.types.ndarray(dtype=ti.types.vector(2, ti.f32), ndim=1),
     fine_levels: ti.types.ndarray(dtype=ti.i32, ndim=1),
     occ_origin: ti.types.ndarray(dtype=vec3, ndim=1),
     occ_inv_cell: ti.types.ndarray(ndim=1),
@@ -288,8 +304,9 @@ def _rigid_query(
                 if levels != 0:
                     n_found = query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, tri,
                                           ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)),
-                                          cell_items, entry_box, occ_origin, occ_inv_cell, occ_dims, occ_offset,
-                                          occ_table, pairs, c * room, room, n_found, inv_h0)
+                                          cell_items, entry_box, slab_normal, slab_range, occ_origin,
+                                          occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, c * room, room,
+                                          n_found, inv_h0)
             chunk_found[c] = n_found
             ti.atomic_add(counts[N_PAIRS], n_found)
             ti.atomic_max(counts[N_ROOM], n_found)
@@ -363,6 +380,7 @@ class RigidPipeline:
         lo, hi = lo - pad, hi + pad
         self.grid = LocalGrid(lo, hi, tri_body, n_bodies, self.cell_size)
         self.occupancy = Occupancy(lo, hi, tri_body, n_bodies, self.cell_size)
+        self.slab_normal, self.slab_range = cell_slabs(self.grid, x.astype(np.float64), tri_indices, pad[:, 0])
 
         # Clusters: the triangles whose box centres share a cell at CLUSTER_LEVEL.
         cluster_cell = np.floor(0.5 * (lo + hi) / (self.cell_size * 2.0 ** CLUSTER_LEVEL)).astype(np.int64)
@@ -446,6 +464,7 @@ class RigidPipeline:
                              self.vert_local, self.tri, self.cluster_tris, self.cluster_start, self.cluster_box,
                              self.cluster_level,
                              *self.grid.arrays(), self.grid.cell_items, self.grid.entry_box,
+                             self.slab_normal, self.slab_range,
                              self.grid.body_levels, self.occupancy.origin, self.occupancy.inv_cell,
                              self.occupancy.dims, self.occupancy.offset, self.occupancy.table, self.world_box,
                              self.dir_info, self.dir_rot, self.dir_shift, self.dir_pad, self.query, self.pairs,

@@ -195,3 +195,64 @@ def test_static_bodies_are_not_paired_with_each_other(f64):
     assert got == wanted and len(wanted) > 0
     with pytest.raises(ValueError, match="static needs one flag per body"):
         RigidPipeline(meshes, static=[True])
+
+
+def test_each_cells_slab_holds_its_triangles_and_a_plates_faces_turn_nothing_away(f64):
+    """Every vertex of every triangle listed in a cell lies within that cell's slab (a
+    triangle outside it is then parted from all of them); a cell holding both faces of a
+    thin plate, whose normals cancel, has an unbounded slab."""
+    a = trimesh.creation.torus(1.0, 0.35, major_sections=40, minor_sections=20)
+    plate = trimesh.creation.box(extents=(0.3, 0.3, 1e-4)).subdivide().subdivide()
+    plate.apply_translation([0.0, 0.0, 0.0123])  # both faces within one layer of cells
+    meshes = [(a.vertices, a.faces), (plate.vertices, plate.faces)]
+    pipeline = RigidPipeline(meshes)
+    grid = pipeline.grid
+    x = np.concatenate([a.vertices, plate.vertices])
+    faces = np.concatenate([a.faces, plate.faces + len(a.vertices)])
+    normal, bounds = (arr.to_numpy().astype(np.float64) for arr in (pipeline.slab_normal, pipeline.slab_range))
+    bounded = 0
+    for start, end in grid.runs:
+        tris = grid.items[start:end]
+        along = x[faces[tris]] @ normal[start]
+        assert along.min() >= bounds[start, 0] and along.max() <= bounds[start, 1]
+        if np.isfinite(bounds[start]).all():
+            bounded += 1
+            assert abs(np.linalg.norm(normal[start]) - 1.0) < 1e-6
+    assert bounded > 0.9 * len(grid.runs)
+    up = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])[:, 2]
+    plate = np.arange(len(faces)) >= len(a.faces)
+    both_faces = [s for s, e in grid.runs
+                  if (plate[grid.items[s:e]] & (up[grid.items[s:e]] > 0)).any()
+                  and (plate[grid.items[s:e]] & (up[grid.items[s:e]] < 0)).any()]
+    assert both_faces and all(np.isinf(bounds[s]).all() for s in both_faces)
+
+
+@pytest.mark.parametrize("gap", [0.02, 1e-9, 0.0])
+def test_near_coincident_surfaces_match_brute_force(f64, gap):
+    """Two tori on one axis `gap` apart (their surfaces parallel, within the gap, over most of
+    their area, where cells' slabs part them) and a plate laid on another plate's face,
+    touching or a hair above it: every pair the narrow phase finds is found."""
+    a = trimesh.creation.torus(1.0, 0.35, major_sections=32, minor_sections=16)
+    meshes = [(a.vertices, a.faces)] * 2
+    rotation = np.stack([np.eye(3), np.eye(3)])
+    expected = assert_matches_brute(RigidPipeline(meshes), meshes, rotation, np.array([[0, 0, 0], [0, 0, gap]]))
+    assert len(expected) > 0  # crossing, or (gap 0) coincident faces touching
+    plate = trimesh.creation.box(extents=(0.5, 0.5, 0.01))
+    plates = [(plate.vertices, plate.faces), (plate.vertices * [0.5, 0.5, 1.0], plate.faces)]
+    lifted = np.array([[0.0, 0.0, 0.0], [0.05, 0.02, 0.01 + gap]])
+    assert_matches_brute(RigidPipeline(plates), plates, rotation, lifted, atol=0.0)
+
+
+def test_plates_touching_in_f32_match_brute_force(f32):
+    """In f32 the narrow phase's touching tolerance is wide (~4e-6 of an edge): plates laid on
+    each other, overlapping by a little more or a little less than it, or a hair apart, give
+    through the cells' slabs what the brute force gives."""
+    plate = trimesh.creation.box(extents=(0.5, 0.5, 0.01)).subdivide()
+    plates = [(plate.vertices.astype(np.float32), plate.faces),
+              (plate.vertices.astype(np.float32) * np.float32([0.5, 0.5, 1.0]), plate.faces)]
+    rotation = np.stack([np.eye(3), np.eye(3)])
+    found = []
+    for gap in (-1e-5, -1e-6, -1e-7, -1e-8, 0.0, 1e-7):
+        lifted = np.array([[0.0, 0.0, 0.0], [0.05, 0.02, 0.01 + gap]])
+        found.append(len(assert_matches_brute(RigidPipeline(plates), plates, rotation, lifted, atol=1e-4)))
+    assert found[0] > 0  # within the tolerance the plates only touch: no hits
