@@ -7,17 +7,15 @@ body's frame at a time (body Q's triangles against body T's):
 
 1. each cluster of Q (its triangles whose box centres share a cell 2^CLUSTER_LEVEL base
    cells wide) is carried into T's frame, its box made axis-aligned there, and kept if it
-   meets a cell that T's triangles cover (T's occupancy table: eight reads): only Q's
-   triangles near T's surface go on, so the cost follows the contact, not the overlap of the
-   two bodies' boxes;
-2. each triangle of a kept cluster is carried into T's frame, tested against T's occupancy
-   again, and looks up T's grid at the levels of T's triangles at least as coarse as its own
+   meets a cell that T's triangles cover (T's occupancy table: eight reads) and, where all of
+   T's triangles sit in its dense grid, the slab of such a cell (the two planes the cell's
+   triangles lie between, local_grid.cell_slabs): only Q's triangles near T's surface go on,
+   so the cost follows the contact, not the overlap of the two bodies' boxes;
+2. each triangle of a kept cluster is carried into T's frame and looks up T's grid at the
+   levels of T's triangles at least as coarse as its own
    (strictly coarser when T's triangles query Q's, so that each pair is looked up from one
-   side), passing over each cell whose slab (the two planes its triangles lie between,
-   local_grid.cell_slabs) the triangle lies wholly outside, and reporting a pair in the one
-   cell that holds the lower corner of the two boxes' intersection, as the world grid does;
-   where the surfaces run side by side a few cells apart (two tori on one axis), the boxes
-   meet everywhere and the slabs turn the cells away;
+   side), reporting a pair in the one cell that holds the lower corner of the two boxes'
+   intersection, as the world grid does;
 3. the candidate pairs go through the unified narrow phase in world coordinates.
 
 It is exact like the world grid (every intersecting pair, once): boxes are padded by the
@@ -42,9 +40,10 @@ ivec3 = ti.types.vector(3, ti.i32)
 ivec4 = ti.types.vector(4, ti.i32)
 ivec5 = ti.types.vector(5, ti.i32)
 mat3 = ti.math.mat3
-# Clusters are the cells of this level of the base grid (2 base cells wide): smaller ones
-# follow the contact more closely, larger ones are fewer to test.
-CLUSTER_LEVEL = 1
+# Clusters are the cells of this level of the base grid (one base cell wide): smaller ones
+# follow the contact more closely, larger ones are fewer to test. (At level 1, two base cells
+# wide, the coax tori of benchmarks/broadphase.py kept 312k of 1M triangles, at level 0 177k.)
+CLUSTER_LEVEL = 0
 # The change of frame's rounding, in ulps of the largest coordinate involved.
 FRAME_ROUND_ULPS = 16.0
 # The plane test before the narrow phase: a candidate whose other triangle lies wholly on one
@@ -87,11 +86,38 @@ def next_chunk(counts: ti.template(), which: ti.template(), n_chunks: ti.i32) ->
 
 
 @ti.func
+def box_meets_slabs(body_t: ti.i32, lo: vec3, hi: vec3, margin: float, grid: ti.template(),
+                    slab_normal: ti.template(), slab_range: ti.template(), inv_h0: float) -> bool:
+    """Whether the box [lo, hi] (body T's frame) meets the slab of a cell of T's dense grid
+    that it covers (by more than `margin`), when all of T's triangles sit in that grid; True
+    otherwise. A box that meets no covered cell's slab holds nothing that can touch T."""
+    dense_origin = ti.static(grid[0])
+    level = dense_origin[body_t][3]
+    meets = level >= LEVELS
+    if not meets:
+        inv_h = level_inv_h(inv_h0, level)
+        c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
+        centre = 0.5 * (lo + hi)
+        half = 0.5 * (hi - lo)
+        for x in range(c0[0], c1[0] + 1):
+            for y in range(c0[1], c1[1] + 1):
+                for z in range(c0[2], c1[2] + 1):
+                    if not meets:
+                        run = cell_run(body_t, level, ivec3(x, y, z), grid)
+                        if run[1] > run[0]:
+                            n_c = ti.cast(slab_normal[run[0]], float)
+                            d_c = ti.cast(slab_range[run[0]], float)
+                            mid = n_c.dot(centre)
+                            reach = ti.abs(n_c).dot(half) + margin
+                            meets = mid - reach <= d_c[1] and mid + reach >= d_c[0]
+    return meets
+
+
+@ti.func
 def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round_pad: float, levels: ti.i32,
                 vert_local: ti.template(), tri: ti.template(), grid: ti.template(), cell_items: ti.template(),
                 entry_box: ti.template(), slab_normal: ti.template(), slab_range: ti.template(),
-                occ_origin: ti.template(), occ_inv_cell: ti.template(), occ_dims: ti.template(), occ_offset: ti.template(),
-                occ_table: ti.template(), pairs: ti.template(), region: ti.i32, room: ti.i32, n_found: ti.i32,
+                pairs: ti.template(), region: ti.i32, room: ti.i32, n_found: ti.i32,
                 inv_h0: float) -> ti.i32:
     """Step 2 for triangle a of body Q = info[0] (vertex indices ia): its box in T's frame
     (rot, shift; padded by round_pad and BOX_SLACK), and T's triangles in the cells it
@@ -121,44 +147,43 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
     # Far more than the rounding of both frames' coordinates and of the distances.
     plane_margin = ti.static(PLANE_MARGIN_PADS) * round_pad + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * (
         extent + ti.abs(p0).max())
-    if box_occupied(body_t, lo, hi, occ_origin, occ_inv_cell, occ_dims, occ_offset, occ_table):
-        for level in range(LEVELS):
-            if (levels >> level) & 1:
-                inv_h = level_inv_h(inv_h0, level)
-                c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
-                for x in range(c0[0], c1[0] + 1):
-                    for y in range(c0[1], c1[1] + 1):
-                        for z in range(c0[2], c1[2] + 1):
-                            run = cell_run(body_t, level, ivec3(x, y, z), grid)
-                            if run[1] > run[0]:
-                                n_c = ti.cast(slab_normal[run[0]], float)
-                                d_c = ti.cast(slab_range[run[0]], float)
-                                s0 = n_c.dot(p0)
-                                s1 = n_c.dot(p1)
-                                s2 = n_c.dot(p2)
-                                reach = pad + plane_margin
-                                if ti.min(s0, s1, s2) - reach > d_c[1] or ti.max(s0, s1, s2) + reach < d_c[0]:
-                                    run[1] = run[0]
-                            for f in range(run[0], run[1]):
-                                lo_b = ti.cast(entry_box[f, 0], float)
-                                if boxes_overlap(lo, hi, lo_b, ti.cast(entry_box[f, 1], float)):
-                                    # Reported only in the cell holding the intersection's lower corner.
-                                    corner = ti.max(c0, cell_of(lo_b, inv_h))
-                                    if corner[0] == x and corner[1] == y and corner[2] == z:
-                                        b = cell_items[f]
-                                        keep = True
-                                        if plane_test:
-                                            ib = tri[b]
-                                            s0 = normal.dot(vert_local[ib[0]] - p0)
-                                            s1 = normal.dot(vert_local[ib[1]] - p0)
-                                            s2 = normal.dot(vert_local[ib[2]] - p0)
-                                            keep = (ti.min(s0, s1, s2) <= plane_margin
-                                                    and ti.max(s0, s1, s2) >= -plane_margin)
-                                        if keep:
-                                            if n_found < room:
-                                                pairs[region + n_found] = (ivec2(a, b) if info[0] < body_t
-                                                                           else ivec2(b, a))
-                                            n_found += 1
+    for level in range(LEVELS):
+        if (levels >> level) & 1:
+            inv_h = level_inv_h(inv_h0, level)
+            c0, c1 = cell_of(lo, inv_h), cell_of(hi, inv_h)
+            for x in range(c0[0], c1[0] + 1):
+                for y in range(c0[1], c1[1] + 1):
+                    for z in range(c0[2], c1[2] + 1):
+                        run = cell_run(body_t, level, ivec3(x, y, z), grid)
+                        if run[1] > run[0]:
+                            n_c = ti.cast(slab_normal[run[0]], float)
+                            d_c = ti.cast(slab_range[run[0]], float)
+                            s0 = n_c.dot(p0)
+                            s1 = n_c.dot(p1)
+                            s2 = n_c.dot(p2)
+                            reach = pad + plane_margin
+                            if ti.min(s0, s1, s2) - reach > d_c[1] or ti.max(s0, s1, s2) + reach < d_c[0]:
+                                run[1] = run[0]
+                        for f in range(run[0], run[1]):
+                            lo_b = ti.cast(entry_box[f, 0], float)
+                            if boxes_overlap(lo, hi, lo_b, ti.cast(entry_box[f, 1], float)):
+                                # Reported only in the cell holding the intersection's lower corner.
+                                corner = ti.max(c0, cell_of(lo_b, inv_h))
+                                if corner[0] == x and corner[1] == y and corner[2] == z:
+                                    b = cell_items[f]
+                                    keep = True
+                                    if plane_test:
+                                        ib = tri[b]
+                                        s0 = normal.dot(vert_local[ib[0]] - p0)
+                                        s1 = normal.dot(vert_local[ib[1]] - p0)
+                                        s2 = normal.dot(vert_local[ib[2]] - p0)
+                                        keep = (ti.min(s0, s1, s2) <= plane_margin
+                                                and ti.max(s0, s1, s2) >= -plane_margin)
+                                    if keep:
+                                        if n_found < room:
+                                            pairs[region + n_found] = (ivec2(a, b) if info[0] < body_t
+                                                                       else ivec2(b, a))
+                                        n_found += 1
     return n_found
 
 
@@ -271,8 +296,15 @@ def _rigid_query(
         rot = dir_rot[d]
         centre_t = rot @ centre + dir_shift[d]
         half_t = ti.abs(rot) @ half + dir_pad[d]
-        if wanted != 0 and box_occupied(info[1], centre_t - half_t, centre_t + half_t, occ_origin, occ_inv_cell,
-                                        occ_dims, occ_offset, occ_table):
+        keep = wanted != 0 and box_occupied(info[1], centre_t - half_t, centre_t + half_t, occ_origin, occ_inv_cell,
+                                            occ_dims, occ_offset, occ_table)
+        if keep and fine_levels[info[1]] == (1 << dense_origin[info[1]][3]):
+            margin = ti.static(PLANE_MARGIN_PADS) * dir_pad[d] + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * (
+                ti.abs(centre_t).max() + half_t.max())
+            keep = box_meets_slabs(info[1], centre_t - half_t, centre_t + half_t, margin,
+                                   ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)),
+                                   slab_normal, slab_range, inv_h0)
+        if keep:
             first, end = cluster_start[c], cluster_start[c + 1]
             slot = ti.atomic_add(counts[N_KEPT], end - first)
             if slot + end - first <= query.shape[0]:
@@ -304,9 +336,8 @@ def _rigid_query(
                 if levels != 0:
                     n_found = query_cells(ia, a, info, dir_rot[d], dir_shift[d], dir_pad[d], levels, vert_local, tri,
                                           ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)),
-                                          cell_items, entry_box, slab_normal, slab_range, occ_origin,
-                                          occ_inv_cell, occ_dims, occ_offset, occ_table, pairs, c * room, room,
-                                          n_found, inv_h0)
+                                          cell_items, entry_box, slab_normal, slab_range, pairs, c * room,
+                                          room, n_found, inv_h0)
             chunk_found[c] = n_found
             ti.atomic_add(counts[N_PAIRS], n_found)
             ti.atomic_max(counts[N_ROOM], n_found)
