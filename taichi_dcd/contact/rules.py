@@ -36,6 +36,8 @@ class ContactRules:
     shock_propagation: a light body under a much heavier one holds still in their contact.
     support_pass: after an island's sweeps, its rows that carry weight are projected once more
         level by level from the ground up, each lower body held still (solver.islands).
+    gap_rows: between two moving rigid bodies a vertex just in front of the other's face gets a
+        row that pushes once the projection closes the gap (contact.gap_rows; all-pairs scenes).
     """
 
     touching_pairs: bool = True
@@ -57,6 +59,7 @@ class ContactRules:
     near_vertex: bool = True
     shock_propagation: bool = True
     support_pass: bool = True
+    gap_rows: bool = True
 
     @classmethod
     def without(cls, *names: str) -> "ContactRules":

@@ -6,6 +6,7 @@ import taichi as ti
 
 from ..collision.all_pairs import candidate_pairs
 from ..contact.carried import carried_rows, keep_rows
+from ..contact.gap_rows import add_gap_rows
 from ..contact.pair_rows import add_pair_contact, collide_candidates
 from ..contact.rows import forget_rows
 from ..contact.sleeping import is_moving, wake_near
@@ -92,15 +93,18 @@ def touches_static(sim: ti.template(), rows: ti.template(), k: ti.i32) -> bool:
 
 
 @ti.func
-def rows_after_pairs(sim: ti.template(), rows: ti.template(), n: ti.i32, max_push: float):
-    """After the n rows of the triangle pairs: vertex rows, soft resting rows and carried rows
-    (each rule its own function in contact/). Returns (rows needed before the carried rows, above
-    the buffer's capacity if it overflowed; rows to solve, within it)."""
+def rows_after_pairs(sim: ti.template(), rows: ti.template(), n: ti.i32, max_push: float, all_pairs: ti.template()):
+    """After the n rows of the triangle pairs: vertex rows, soft resting rows, gap rows (with
+    the all-pairs broad phase, whose triangle boxes they read) and carried rows (each rule its
+    own function in contact/). Returns (rows needed before the carried rows, above the buffer's
+    capacity if it overflowed; rows to solve, within it)."""
     needed = n
     if ti.static(sim.rules.vertex_rows or sim.rules.soft_feature_rows):
         needed = add_vertex_contacts(sim, rows, n, max_push)
     if ti.static(sim.rules.resting_rows or sim.rules.sharp_edge_rows):
         needed = add_resting_contacts(sim, rows, needed, max_push)
+    if ti.static(sim.rules.gap_rows and all_pairs):
+        needed = add_gap_rows(sim, rows, needed, max_push)
     n_rows = ti.min(needed, rows.tri.shape[0])
     if ti.static(sim.rules.carried_rows):
         n_rows = carried_rows(sim, rows, n_rows, max_push)
@@ -145,7 +149,7 @@ def substep_all_pairs(sim: ti.template(), rows: ti.template(), iterations: ti.i3
     n = candidate_pairs(sim, rows)
     wanted = n
     n = collide_candidates(sim, rows, ti.min(n, capacity), depenetration * h)
-    needed, n = rows_after_pairs(sim, rows, n, depenetration * h)
+    needed, n = rows_after_pairs(sim, rows, n, depenetration * h, True)
     solve_rows(sim, rows, n, iterations, h, g_norm, depenetration * h)
     return ti.max(wanted, needed), n
 
@@ -160,7 +164,7 @@ def rows_at_state(sim: ti.template(), rows: ti.template(), max_push: float):
     n = candidate_pairs(sim, rows)
     wanted = n
     n = collide_candidates(sim, rows, ti.min(n, rows.tri.shape[0]), max_push)
-    needed, n = rows_after_pairs(sim, rows, n, max_push)
+    needed, n = rows_after_pairs(sim, rows, n, max_push, True)
     return ti.max(wanted, needed), n
 
 
@@ -187,7 +191,7 @@ def rows_from_pairs(sim: ti.template(), rows: ti.template(), pairs: ti.template(
         if is_moving(sim, sim.model.tri_body[pair[0]]) or is_moving(sim, sim.model.tri_body[pair[1]]):
             n = add_pair_contact(sim, rows, n, pair, ti.cast(pairs.side[k], ti.i32), pairs.depth[k],
                                  pairs.normal[k], pairs.point[k], max_push)
-    _, n = rows_after_pairs(sim, rows, n, max_push)
+    _, n = rows_after_pairs(sim, rows, n, max_push, False)
     return n
 
 
