@@ -86,6 +86,19 @@ def next_chunk(counts: ti.template(), which: ti.template(), n_chunks: ti.i32) ->
 
 
 @ti.func
+def rounding_margin(pad: float, size: float) -> float:
+    """Far more than the rounding of both frames' coordinates (pad: the change of frame's) and
+    of distances among coordinates up to `size` (scene units)."""
+    return ti.static(PLANE_MARGIN_PADS) * pad + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * size
+
+
+@ti.func
+def outside_slab(lo: float, hi: float, slab) -> bool:
+    """Whether the interval [lo, hi] along a cell's slab normal misses its slab (lo, hi)."""
+    return lo > slab[1] or hi < slab[0]
+
+
+@ti.func
 def box_meets_slabs(body_t: ti.i32, lo: vec3, hi: vec3, margin: float, grid: ti.template(),
                     slab_normal: ti.template(), slab_range: ti.template(), inv_h0: float) -> bool:
     """Whether the box [lo, hi] (body T's frame) meets the slab of a cell of T's dense grid
@@ -109,7 +122,7 @@ def box_meets_slabs(body_t: ti.i32, lo: vec3, hi: vec3, margin: float, grid: ti.
                             d_c = ti.cast(slab_range[run[0]], float)
                             mid = n_c.dot(centre)
                             reach = ti.abs(n_c).dot(half) + margin
-                            meets = mid - reach <= d_c[1] and mid + reach >= d_c[0]
+                            meets = not outside_slab(mid - reach, mid + reach, d_c)
     return meets
 
 
@@ -144,9 +157,7 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
     plane_test = area2 > ti.static(PLANE_TEST_MIN_AREA) * extent * extent
     if plane_test:
         normal /= area2
-    # Far more than the rounding of both frames' coordinates and of the distances.
-    plane_margin = ti.static(PLANE_MARGIN_PADS) * round_pad + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * (
-        extent + ti.abs(p0).max())
+    plane_margin = rounding_margin(round_pad, extent + ti.abs(p0).max())
     for level in range(LEVELS):
         if (levels >> level) & 1:
             inv_h = level_inv_h(inv_h0, level)
@@ -162,7 +173,7 @@ def query_cells(ia: ivec5, a: ti.i32, info: ivec5, rot: mat3, shift: vec3, round
                             s1 = n_c.dot(p1)
                             s2 = n_c.dot(p2)
                             reach = pad + plane_margin
-                            if ti.min(s0, s1, s2) - reach > d_c[1] or ti.max(s0, s1, s2) + reach < d_c[0]:
+                            if outside_slab(ti.min(s0, s1, s2) - reach, ti.max(s0, s1, s2) + reach, d_c):
                                 run[1] = run[0]
                         for f in range(run[0], run[1]):
                             lo_b = ti.cast(entry_box[f, 0], float)
@@ -299,8 +310,7 @@ def _rigid_query(
         keep = wanted != 0 and box_occupied(info[1], centre_t - half_t, centre_t + half_t, occ_origin, occ_inv_cell,
                                             occ_dims, occ_offset, occ_table)
         if keep and fine_levels[info[1]] == (1 << dense_origin[info[1]][3]):
-            margin = ti.static(PLANE_MARGIN_PADS) * dir_pad[d] + ti.static(PLANE_MARGIN_ULPS * runtime.machine_eps()) * (
-                ti.abs(centre_t).max() + half_t.max())
+            margin = rounding_margin(dir_pad[d], ti.abs(centre_t).max() + half_t.max())
             keep = box_meets_slabs(info[1], centre_t - half_t, centre_t + half_t, margin,
                                    ti.static((dense_origin, dense_dims, dense_start, cell_key, cell_range)),
                                    slab_normal, slab_range, inv_h0)

@@ -8,6 +8,7 @@ from ..collision.grid_cells import boxes_overlap
 from ..core import runtime
 from ..core.geometry import barycentric
 from ..core.model import RIGID
+from .exits import behind_plane
 from .rows import has_pair_row, is_duplicate, start_row
 from .sleeping import is_moving
 
@@ -24,16 +25,6 @@ FACING_DOT = -0.5
 # pyramid's touching neighbours got them, and it rested 29 µm from its places instead of 16 at
 # a third more wall time (docs/experiments.md, 2026-12-06).
 SUPPORT_DOT = 0.7071
-
-
-@ti.func
-def unit_normal(a: vec3, b: vec3, c: vec3) -> vec3:
-    """The unit normal of triangle (a, b, c) by the right-hand rule; zero if it has no area."""
-    n = (b - a).cross(c - a)
-    length = n.norm()
-    if length > 0.0:
-        n /= length
-    return n
 
 
 @ti.func
@@ -83,12 +74,14 @@ def gap_rows_of_pair(sim: ti.template(), rows: ti.template(), n: ti.i32, ta: ti.
         t_m, t_o = (ta, tb) if way == 0 else (tb, ta)
         im, io = sim.model.tri_indices[t_m], sim.model.tri_indices[t_o]
         o0, o1, o2 = sim.state.vertex_x[io[0]], sim.state.vertex_x[io[1]], sim.state.vertex_x[io[2]]
-        n_o = unit_normal(o0, o1, o2)
-        n_m = unit_normal(sim.state.vertex_x[im[0]], sim.state.vertex_x[im[1]], sim.state.vertex_x[im[2]])
+        # (Each unpacked name distinct: Taichi types a reused name by its first assignment.)
+        area_o, n_o, at_o, floor_o = behind_plane(sim, t_o, o0)
+        area_m, n_m, at_m, floor_m = behind_plane(sim, t_m, o0)
         if n_m.dot(n_o) < ti.static(FACING_DOT) and ti.abs(n_o.dot(sim.up[0])) >= ti.static(SUPPORT_DOT):
             for k in ti.static(range(3)):
                 p = sim.state.vertex_x[im[k]]
-                gap = n_o.dot(p - o0)
+                area_p, n_p, behind, floor_p = behind_plane(sim, t_o, p)
+                gap = -behind
                 if gap >= 0.0 and gap <= margin:
                     q = p - gap * n_o
                     bary_o = barycentric(q, o0, o1, o2)
